@@ -1,0 +1,168 @@
+"""The halfshaft solve (seed §2.9) against an independent fsolve, identities and limits."""
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import reference
+from tripodjax import Layout, seed_case, solve_halfshaft
+from tripodjax.halfshaft import scaled_jacobian, scaled_residual
+
+THETA = np.linspace(0.0, 2 * np.pi, 97)
+
+
+def unscaled_pair(R, l, gamma0, theta, delta, gamma):
+    h = -l * np.sin(gamma0) - 0.5 * R * (1 - np.cos(gamma0))
+    e = 0.5 * R * (1 - np.cos(gamma)) / np.cos(gamma)
+    psi = theta - delta
+    f1 = h * np.sin(delta) - e * np.sin(3 * psi)
+    f2 = h * np.cos(delta) + l * np.sin(gamma) + e * np.cos(gamma) * np.cos(3 * psi)
+    return np.stack([f1, f2], -1)
+
+
+def test_scaled_residual_is_the_printed_pair_divided_by_2l_sin_half_gamma0():
+    rng = np.random.default_rng(1)
+    for _ in range(20):
+        R, l, g0 = rng.uniform(15, 45), rng.uniform(250, 900), rng.uniform(0.05, 0.78)
+        theta, delta, v = rng.uniform(0, 2 * np.pi), rng.uniform(-0.02, 0.02), rng.uniform(-0.05, 0.05)
+        scaled = np.asarray(scaled_residual(R, l, g0, theta, jnp.array([delta, v])))
+        printed = unscaled_pair(R, l, g0, theta, delta, g0 * (1 + v)) / (2 * l * np.sin(g0 / 2))
+        np.testing.assert_allclose(scaled, printed, rtol=1e-9, atol=1e-13)
+
+
+@pytest.mark.parametrize("gamma0", [0.0, 1e-8, 0.35, 0.785])
+def test_closed_form_jacobian_matches_autodiff(gamma0):
+    rng = np.random.default_rng(2)
+    for _ in range(10):
+        theta, x = rng.uniform(0, 2 * np.pi), jnp.asarray(rng.uniform(-0.03, 0.03, 2))
+        closed = scaled_jacobian(40.0, 200.0, gamma0, theta, x)
+        auto = jax.jacfwd(lambda y: scaled_residual(40.0, 200.0, gamma0, theta, y))(x)
+        np.testing.assert_allclose(closed, auto, rtol=1e-12, atol=1e-15)
+
+
+def assert_matches_fsolve(layout, theta=THETA, atol=1e-12):
+    sol = solve_halfshaft(layout, jnp.asarray(theta))
+    assert bool(jnp.all(sol.converged))
+    psi, gamma = reference.solve(theta, layout.R, layout.l, layout.gamma0)
+    np.testing.assert_allclose(sol.psi, psi, rtol=0, atol=atol)
+    np.testing.assert_allclose(sol.gamma, gamma, rtol=0, atol=atol)
+
+
+@pytest.mark.parametrize("code", ["N", "L3", "L4", "L7", "R2", "R3", "R4", "g5", "g10", "g15", "g25"])
+def test_table_2_1_pointwise_against_fsolve(code):
+    assert_matches_fsolve(seed_case(code))
+
+
+def test_random_layouts_pointwise_against_fsolve():
+    rng = np.random.default_rng(3)
+    for _ in range(12):
+        layout = Layout.from_degrees(rng.uniform(15, 45), rng.uniform(250, 900), rng.uniform(1, 40))
+        assert_matches_fsolve(layout, theta=THETA[::4])
+
+
+@pytest.mark.parametrize("layout", [Layout.from_degrees(25.0, 500.0, 45.0), Layout.from_degrees(40.0, 200.0, 45.0)])
+def test_extremes_45_degrees_and_R_over_l_0_2(layout):
+    assert_matches_fsolve(layout)
+
+
+def test_identities_period_zeros_and_symmetry():
+    layout = seed_case("N")
+    theta = np.linspace(0, 2 * np.pi / 3, 41)
+    base = solve_halfshaft(layout, theta)
+    shifted = solve_halfshaft(layout, theta + 2 * np.pi / 3)
+    np.testing.assert_allclose(shifted.delta, base.delta, atol=1e-14)  # period 2π/3
+    np.testing.assert_allclose(shifted.gamma, base.gamma, atol=1e-14)
+    mirrored = solve_halfshaft(layout, -theta)
+    np.testing.assert_allclose(mirrored.delta, -base.delta, atol=1e-14)  # Δ odd in θ
+    zeros = solve_halfshaft(layout, np.arange(7) * np.pi / 3)
+    np.testing.assert_allclose(zeros.delta, 0.0, atol=1e-14)  # accuracy points θ = kπ/3 (2.8.10)
+    start = solve_halfshaft(layout, 0.0)
+    assert float(start.psi) == 0.0 and float(start.gamma) == pytest.approx(layout.gamma0, abs=1e-15)
+
+
+def test_gamma0_zero_is_homokinetic_with_finite_derivatives():
+    layout = Layout(25.0, 500.0, 0.0)
+    sol = solve_halfshaft(layout, THETA)
+    assert bool(jnp.all(sol.converged))
+    np.testing.assert_allclose(sol.psi, THETA, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(sol.gamma, 0.0, rtol=0, atol=1e-12)
+
+    def delta_at(lay):
+        return jnp.sum(solve_halfshaft(lay, jnp.asarray(THETA)).delta)
+
+    grads = jax.grad(delta_at)(layout)
+    assert all(np.isfinite(g) for g in jax.tree_util.tree_leaves(grads))
+    # dγ/dγ0 = 1 at γ0 = 0 (γ ≈ γ0 + O(γ0²)).
+    dgamma = jax.grad(lambda g0: solve_halfshaft(Layout(25.0, 500.0, g0), 0.7).gamma)(0.0)
+    assert float(dgamma) == pytest.approx(1.0, abs=1e-12)
+
+
+def test_tiny_gamma0_converges_in_float32_and_float64():
+    for dtype in (jnp.float32, jnp.float64):
+        layout = Layout(jnp.asarray(25.0, dtype), jnp.asarray(500.0, dtype), jnp.asarray(1e-8, dtype))
+        sol = solve_halfshaft(layout, jnp.asarray(THETA, dtype))
+        assert sol.psi.dtype == dtype
+        assert bool(jnp.all(sol.converged)) and bool(jnp.all(jnp.isfinite(sol.psi)))
+        # Δ ≈ −(e/|h|) sin 3θ with e/|h| ≈ R γ0 / (4 l)
+        np.testing.assert_allclose(sol.delta, -25.0e-8 / 2000 * np.sin(3 * THETA), rtol=0, atol=1e-15)
+
+
+def test_non_convergence_is_reported_per_point():
+    sol = solve_halfshaft(seed_case("g25"), np.array([0.0, 0.3, 0.5]), max_steps=1)
+    # θ = 0 is solved exactly by the first step; the others need more than one.
+    np.testing.assert_array_equal(sol.converged, [True, False, False])
+    assert np.all(np.asarray(sol.iterations) == 1)
+    assert np.all(np.isfinite(sol.residual)) and float(jnp.max(jnp.abs(sol.residual))) > 1e-12
+
+
+def test_converged_residual_is_at_rounding_level_and_steps_are_few():
+    sol = solve_halfshaft(seed_case("R4"), THETA)
+    assert float(jnp.max(jnp.abs(sol.residual))) < 1e-15
+    assert int(jnp.max(sol.iterations)) <= 6
+
+
+def test_second_theta_derivative_by_implicit_differentiation_matches_differences():
+    layout = seed_case("N")
+    theta0, step = 0.4, 1e-4
+
+    def dpsi(t):
+        return jax.jvp(lambda u: solve_halfshaft(layout, u).psi, (t,), (1.0,))[1]
+
+    d2 = jax.jvp(dpsi, (theta0,), (1.0,))[1]
+    psi = [reference.solve(np.array([theta0 + k * step]), layout.R, layout.l, layout.gamma0)[0][0] for k in (-1, 0, 1)]
+    fd2 = (psi[2] - 2 * psi[1] + psi[0]) / step**2
+    assert float(d2) == pytest.approx(fd2, rel=1e-4)
+    assert float(dpsi(theta0)) == pytest.approx((psi[2] - psi[0]) / (2 * step), rel=1e-9)
+
+
+def test_parameter_derivatives_match_central_differences():
+    theta = 0.45
+    base = dict(R=30.0, l=450.0, gamma0=0.3)
+
+    def delta(**kw):
+        return solve_halfshaft(Layout(**kw), theta).delta
+
+    grads = jax.grad(lambda lay: delta(R=lay.R, l=lay.l, gamma0=lay.gamma0))(Layout(**base))
+    for name in ("R", "l", "gamma0"):
+        step = 1e-6 * base[name]
+        plus, minus = dict(base), dict(base)
+        plus[name] += step
+        minus[name] -= step
+        fd = (float(delta(**plus)) - float(delta(**minus))) / (2 * step)
+        assert float(getattr(grads, name)) == pytest.approx(fd, rel=1e-6)
+
+
+def test_float32_keeps_the_small_unknowns_accurate(float32_default):
+    layout = seed_case("N")
+    sol32 = solve_halfshaft(layout, jnp.asarray(THETA, jnp.float32))
+    assert sol32.delta.dtype == jnp.float32
+    with jax.enable_x64(True):
+        sol64 = solve_halfshaft(layout, jnp.asarray(THETA, jnp.float64))
+        delta64 = np.asarray(sol64.delta)
+    amplitude = np.abs(delta64).max()
+    # Δ is solved for directly: its float32 error is a few ε of Δ's own size,
+    # not ε·θ as it would be from θ − ψ.
+    assert np.abs(np.asarray(sol32.delta, np.float64) - delta64).max() < 2e-5 * amplitude

@@ -1,0 +1,120 @@
+"""Kinematic metrics (seed §2.10, §2.11.3): seed numbers, independent solve, gradients, limits."""
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import reference
+from tripodjax import TABLE_2_1, Layout, kinematic_metrics, seed_case
+
+COMPARED = ("delta_pp", "irregularity", "gamma_pp", "ecc_max")
+
+
+def assert_metrics_match_reference(layout, rtol):
+    ours = kinematic_metrics(layout)
+    assert bool(ours.converged)
+    theirs = reference.metrics(layout.R, layout.l, layout.gamma0)
+    for name in COMPARED:
+        assert float(getattr(ours, name)) == pytest.approx(theirs[name], rel=rtol), name
+
+
+def test_seed_case_N_numbers():
+    metrics = kinematic_metrics(seed_case("N"))
+    # §2.11.3: Δ(θ) = −4.7·10⁻³ sin 3θ rad and Irr = 2.82 %; the brief's check gives 2.83 %.
+    assert float(metrics.delta_pp) / 2 == pytest.approx(4.7e-3, abs=0.05e-3)
+    assert 0.0282 <= float(metrics.irregularity) <= 0.0283
+    # The brief: γ ripples +0.19° above γ0.
+    assert math.degrees(float(metrics.gamma_max) - seed_case("N").gamma0) == pytest.approx(0.19, abs=0.005)
+
+
+def test_seed_trends_over_table_2_1():
+    """§2.10: Δ p-p grows with R and γ0, falls with l, about 0.4–0.9° over the table."""
+    pp = {code: math.degrees(float(kinematic_metrics(seed_case(code)).delta_pp)) for code in TABLE_2_1}
+    assert pp["R2"] < pp["N"] < pp["R3"] < pp["R4"]
+    assert pp["g5"] < pp["g10"] < pp["g15"] < pp["N"] < pp["g25"]
+    assert pp["L3"] > pp["L4"] > pp["N"] > pp["L7"]
+    nonzero = [v for k, v in pp.items() if k not in ("g5", "g10")]
+    assert 0.35 < min(nonzero) and max(pp.values()) < 0.95
+
+
+@pytest.mark.parametrize("code", list(TABLE_2_1))
+def test_table_2_1_metrics_against_fsolve(code):
+    # The reference's dψ/dθ is a central difference (error ~1e-9): rtol 1e-6.
+    assert_metrics_match_reference(seed_case(code), rtol=1e-6)
+
+
+def test_random_layout_metrics_against_fsolve():
+    rng = np.random.default_rng(11)
+    for _ in range(6):
+        layout = Layout.from_degrees(rng.uniform(15, 45), rng.uniform(250, 900), rng.uniform(1, 40))
+        assert_metrics_match_reference(layout, rtol=1e-6)
+
+
+@pytest.mark.parametrize("layout", [Layout.from_degrees(25.0, 500.0, 45.0), Layout(40.0, 200.0, 0.6)])
+def test_extreme_layout_metrics_against_fsolve(layout):
+    assert_metrics_match_reference(layout, rtol=1e-6)
+
+
+@pytest.mark.parametrize("name", ["irregularity", "ecc_max", "delta_pp", "gamma_pp", "roller_stroke"])
+def test_gradients_match_central_differences(name):
+    base = {"R": 28.0, "l": 420.0, "gamma0": 0.31}
+    grads = jax.grad(lambda lay: getattr(kinematic_metrics(lay), name))(Layout(**base))
+    for field in ("R", "l", "gamma0"):
+        step = 1e-5 * base[field]
+        values = []
+        for sign in (1, -1):
+            moved = dict(base)
+            moved[field] += sign * step
+            values.append(float(getattr(kinematic_metrics(Layout(**moved)), name)))
+        fd = (values[0] - values[1]) / (2 * step)
+        assert float(getattr(grads, field)) == pytest.approx(fd, rel=1e-3, abs=1e-12), field
+
+
+def test_jacfwd_over_all_fields():
+    jac = jax.jacfwd(lambda lay: kinematic_metrics(lay).irregularity)(seed_case("N"))
+    assert all(np.isfinite(float(v)) for v in jax.tree_util.tree_leaves(jac))
+
+
+def test_gamma0_zero_values_and_gradients_are_finite():
+    layout = Layout(25.0, 500.0, 0.0)
+    metrics = kinematic_metrics(layout)
+    assert bool(metrics.converged)
+    for name in ("delta_pp", "irregularity", "gamma_pp", "ecc_max", "roller_stroke"):
+        assert float(getattr(metrics, name)) == pytest.approx(0.0, abs=1e-14)
+    grads = jax.grad(lambda lay: kinematic_metrics(lay).irregularity)(layout)
+    assert all(np.isfinite(float(v)) for v in jax.tree_util.tree_leaves(grads))
+
+
+def test_right_limit_at_gamma0_zero_is_continuous():
+    """Irr ≈ 6 e(γ0)/|h| ≈ 1.5 (R/l) γ0 as γ0 → 0+ (§2.11 first order)."""
+    R, l = 25.0, 500.0
+    for gamma0 in (1e-3, 1e-5, 1e-8):
+        irr = float(kinematic_metrics(Layout(R, l, gamma0)).irregularity)
+        assert irr / gamma0 == pytest.approx(1.5 * R / l, rel=2e-3)
+
+
+def test_float32_irregularity_within_1e_3_of_float64(float32_default):
+    metrics32 = kinematic_metrics(seed_case("N"))
+    assert metrics32.irregularity.dtype == jnp.float32 and bool(metrics32.converged)
+    with jax.enable_x64(True):
+        irr64 = float(kinematic_metrics(seed_case("N")).irregularity)
+    assert float(metrics32.irregularity) == pytest.approx(irr64, rel=1e-3)
+
+
+def test_vmap_over_layouts_matches_one_by_one():
+    codes = ["N", "R4", "g5"]
+    batch = Layout(*(jnp.array([getattr(seed_case(c), f) for c in codes]) for f in ("R", "l", "gamma0")))
+    batched = jax.vmap(kinematic_metrics)(batch)
+    for i, code in enumerate(codes):
+        single = kinematic_metrics(seed_case(code))
+        assert float(batched.irregularity[i]) == pytest.approx(float(single.irregularity), rel=1e-13)
+
+
+def test_n_theta_must_be_a_multiple_of_6_and_fidelity_known():
+    with pytest.raises(ValueError, match="n_theta = 100 is not allowed"):
+        kinematic_metrics(seed_case("N"), n_theta=100)
+    with pytest.raises(ValueError, match="fidelity = 'exact' is not allowed; allowed: newton"):
+        kinematic_metrics(seed_case("N"), fidelity="exact")

@@ -1,0 +1,36 @@
+"""tripodjax: differentiable design optimisation of tripod constant-velocity joints.
+
+Units: lengths in mm, angles in rad, torque in N·m, pressure in MPa (degrees
+only at the user-facing edge). Physics layers, after the seed thesis:
+
+- :mod:`tripodjax.layout`: :class:`Layout` (R, l, γ0) and the seed's Table 2.1 cases.
+- :mod:`tripodjax.joint`: single-joint relations (§2.3–2.6).
+- :mod:`tripodjax.halfshaft`: the halfshaft residual pair solved per θ (§2.9).
+- :mod:`tripodjax.kinematics`: metrics over a revolution (§2.10, §2.11.3).
+- :mod:`tripodjax.motion`: velocities and accelerations, exact and first order (§2.11).
+
+Nothing here changes JAX's global configuration: enable float64 yourself with
+``jax.config.update("jax_enable_x64", True)`` when you need it.
+"""
+
+from tripodjax import joint
+from tripodjax.halfshaft import HalfshaftSolution, solve_halfshaft
+from tripodjax.kinematics import KinematicMetrics, kinematic_metrics
+from tripodjax.layout import TABLE_2_1, Layout, seed_case
+from tripodjax.motion import JointMotion, first_order_motion, halfshaft_motion
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "HalfshaftSolution",
+    "JointMotion",
+    "KinematicMetrics",
+    "Layout",
+    "TABLE_2_1",
+    "first_order_motion",
+    "halfshaft_motion",
+    "joint",
+    "kinematic_metrics",
+    "seed_case",
+    "solve_halfshaft",
+]
