@@ -8,6 +8,7 @@ only at the user-facing edge). Physics layers, after the seed thesis:
 - :mod:`tripodjax.halfshaft`: the halfshaft residual pair solved per θ (§2.9).
 - :mod:`tripodjax.kinematics`: metrics over a revolution (§2.10, §2.11.3).
 - :mod:`tripodjax.motion`: velocities and accelerations, exact and first order (§2.11).
+- :mod:`tripodjax.friction`: friction and the generated axial force, GAF (§3.2).
 - :mod:`tripodjax.hertz`: Hertz contact, torque capacities, minimum size, life (§4.2).
 - :mod:`tripodjax.catalogue`: GE and GI catalogue sizes (§1.1.2).
 
@@ -15,7 +16,7 @@ Nothing here changes JAX's global configuration: enable float64 yourself with
 ``jax.config.update("jax_enable_x64", True)`` when you need it.
 """
 
-from tripodjax import catalogue, hertz, joint
+from tripodjax import catalogue, friction, hertz, joint
 from tripodjax.halfshaft import HalfshaftSolution, solve_halfshaft
 from tripodjax.kinematics import KinematicMetrics, kinematic_metrics
 from tripodjax.layout import TABLE_2_1, Layout, seed_case
@@ -31,6 +32,7 @@ __all__ = [
     "TABLE_2_1",
     "catalogue",
     "first_order_motion",
+    "friction",
     "halfshaft_motion",
     "hertz",
     "joint",

@@ -24,6 +24,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from tripodjax._checks import check
+from tripodjax._checks import check_non_negative, check_positive, check_shares
 from tripodjax._pytree import pytree_dataclass
 
 YOUNG_MODULUS_STEEL = 208_000.0  # MPa
@@ -156,29 +158,6 @@ def mu_nu(cos_tau):
     return hertz_coefficients(cos_tau).mu_nu
 
 
-# --------------------------------------------------------------------------- boundary checks
-
-
-def _concrete(value):
-    """The value as a NumPy array when it is concrete (not traced), else None."""
-    if isinstance(value, jax.core.Tracer):
-        return None
-    return np.asarray(value)
-
-
-def _check(name, value, ok, allowed):
-    array = _concrete(value)
-    if array is not None and not np.all(ok(array)):
-        bad = array[~ok(array)] if array.ndim else array
-        shown = bad.flat[0] if bad.size else array
-        raise ValueError(f"{name} = {float(shown)!r} is outside the allowed range: {allowed}")
-
-
-def _check_positive(**values):
-    for name, value in values.items():
-        _check(name, value, lambda a: np.isfinite(a) & (a > 0), f"{name} > 0")
-
-
 # --------------------------------------------------------------------------- contact geometry
 
 
@@ -201,7 +180,7 @@ class ContactGeometry:
 
 def contact_geometry(conformity):
     """Contact geometry of a roller in a straight track of conformity Ψ = 2 R_g / d > 1."""
-    _check("conformity", conformity, lambda a: np.isfinite(a) & (a > 1), "conformity Ψ > 1")
+    check("conformity", conformity, lambda a: np.isfinite(a) & (a > 1), "conformity Ψ > 1")
     conformity = jnp.asarray(conformity, jnp.result_type(conformity, 0.0))
     chi_q = -1.0 / conformity
     chi_l = jnp.zeros_like(chi_q)
@@ -242,8 +221,8 @@ def roller_contact(load, d, *, conformity, young_modulus=YOUNG_MODULUS_STEEL, po
     a = μ k, b = ν k with k = (3 Q (1 − ν_P²) / (E Σρ))^(1/3), Σρ = dΣρ / d, and
     p_max = 3Q / (2π a b); for steel this is the seed's 858/(μν) (Q Σρ²)^(1/3).
     """
-    _check("load", load, lambda a: np.isfinite(a) & (a >= 0), "load ≥ 0 N")
-    _check_positive(d=d, young_modulus=young_modulus)
+    check_non_negative("load", load, " N")
+    check_positive(d=d, young_modulus=young_modulus)
     geometry = contact_geometry(conformity)
     coefficients = hertz_coefficients(geometry.cos_tau)
     sum_rho = geometry.d_sum_rho / d
@@ -300,7 +279,7 @@ def capacities(d, R, *, conformity, P_s, P_d, P_sd, C_s, n_rollers=3, pressure_a
 
     Differentiable w.r.t. d, R, the conformity and the pressures; any dtype.
     """
-    _check_positive(d=d, R=R, P_s=P_s, P_d=P_d, P_sd=P_sd, C_s=C_s)
+    check_positive(d=d, R=R, P_s=P_s, P_d=P_d, P_sd=P_sd, C_s=C_s)
     geometry = contact_geometry(conformity)
     product = mu_nu(geometry.cos_tau)
     C_p = HERTZ_STEEL / product * geometry.d_sum_rho ** (2.0 / 3.0)
@@ -333,7 +312,7 @@ def min_roller_diameter(M_max, *, R_over_d, conformity, P_s, C_s, n_rollers=3, p
     """
     if rule not in SIZING_RULES:
         raise ValueError(f"rule = {rule!r} is not allowed; allowed: {', '.join(SIZING_RULES)}")
-    _check_positive(M_max=M_max, R_over_d=R_over_d, P_s=P_s, C_s=C_s)
+    check_positive(M_max=M_max, R_over_d=R_over_d, P_s=P_s, C_s=C_s)
     C_p = conformity_coefficient(conformity)
     geometry_factor = n_rollers * R_over_d * jnp.sin(pressure_angle) * jnp.cos(helix_angle)
     torque_nmm = 1000.0 * M_max
@@ -381,10 +360,10 @@ class LoadSpectrum:
     share: jax.Array
 
     def __post_init__(self):
-        _check("LoadSpectrum.torque", self.torque, lambda a: np.isfinite(a) & (a >= 0), "torque ≥ 0 N·m")
-        _check("LoadSpectrum.speed", self.speed, lambda a: np.isfinite(a) & (a >= 0), "speed ≥ 0 rpm")
-        _check("LoadSpectrum.vehicle_speed", self.vehicle_speed, lambda a: np.isfinite(a) & (a >= 0), "vehicle_speed ≥ 0 km/h")
-        _check_shares("LoadSpectrum.share", self.share)
+        check_non_negative("LoadSpectrum.torque", self.torque, " N·m")
+        check_non_negative("LoadSpectrum.speed", self.speed, " rpm")
+        check_non_negative("LoadSpectrum.vehicle_speed", self.vehicle_speed, " km/h")
+        check_shares("LoadSpectrum.share", self.share)
 
 
 @pytree_dataclass
@@ -400,18 +379,8 @@ class WorkingConditions:
     share: jax.Array
 
     def __post_init__(self):
-        _check("WorkingConditions.angle", self.angle, lambda a: np.isfinite(a) & (a >= 0) & (a < math.pi / 2), "0 ≤ angle < π/2 rad")
-        _check_shares("WorkingConditions.share", self.share)
-
-
-def _check_shares(name, share):
-    array = _concrete(share)
-    if array is None:
-        return
-    _check(name, share, lambda a: np.isfinite(a) & (a >= 0), f"{name} ≥ 0")
-    total = float(np.sum(array))
-    if abs(total - 1.0) > 1e-6:
-        raise ValueError(f"{name} sums to {total:.6g}; the shares must sum to 1")
+        check("WorkingConditions.angle", self.angle, lambda a: np.isfinite(a) & (a >= 0) & (a < math.pi / 2), "0 ≤ angle < π/2 rad")
+        check_shares("WorkingConditions.share", self.share)
 
 
 @pytree_dataclass
@@ -439,7 +408,7 @@ def joint_life(d, R, spectrum, conditions, *, conformity, P_d, C_s, n_rollers=3,
     shares, 1/L_h = Σ w_j / L_h,j, and L_s = L_h · V_m with V_m = Σ a_i V_i.
     Differentiable w.r.t. d, R, the conformity and P_d.
     """
-    _check_positive(d=d, R=R, P_d=P_d, C_s=C_s)
+    check_positive(d=d, R=R, P_d=P_d, C_s=C_s)
     C_p = conformity_coefficient(conformity)
     M_d = torque_at_pressure(
         P_d, d, R, C_p=C_p, C_s=C_s, n_rollers=n_rollers, pressure_angle=pressure_angle,

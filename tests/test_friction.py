@@ -1,0 +1,198 @@
+"""Friction and GAF (seed §3.2): the seed's facts, an independent evaluation, limits, gradients."""
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import reference
+from tripodjax import Layout, friction, seed_case
+from tripodjax.kinematics import period_grid
+
+PARAMS_EXAMPLE = friction.GREASE_A.replace(mu_slp=0.04, lam=0.007)  # the seed's GAF example
+THETA = np.linspace(0, 2 * np.pi, 721)
+
+
+def printed_gaf(theta_roller1, gamma_deg, torque, R_mm, mu_slp, lam):
+    """3.2.11–3.2.15 as printed, in degrees, plain NumPy (independent of the library)."""
+    Cd1, Cd2, Rs = 0.4, 8.4e-3, 0.585
+    total = 0.0
+    for i in range(3):
+        th = np.asarray(theta_roller1) + np.radians(120 * i)
+        mu_sr = Rs * np.radians(gamma_deg) * mu_slp + (1 - Rs * np.radians(gamma_deg)) * lam
+        mu_dyn = gamma_deg / 15 * (Cd1 * mu_slp - Cd2) * np.abs(np.sin(th)) + mu_sr
+        total = total + np.sign(np.sin(th + np.radians(90))) * np.abs(mu_dyn)
+    return 2 * torque / (3 * R_mm / 1000) * total
+
+
+def test_three_roller_mean_of_mu_avg_is_constant():
+    """§3.2.5: at γ 15°, 160 N·m, grease A the combined mean friction is constant (0.1445)."""
+    theta = np.linspace(0, 2 * np.pi, 97)
+    rollers = theta[:, None] + np.array([0, 2, 4]) * np.pi / 3
+    each = np.asarray(friction.mu_avg(rollers, math.radians(15), 160.0, friction.GREASE_A))
+    np.testing.assert_allclose(each.mean(axis=1), 0.1445, atol=5e-4)
+    assert np.ptp(each.mean(axis=1)) < 1e-12
+    assert each.min() == pytest.approx(0.102, abs=5e-4) and each.max() == pytest.approx(0.187, abs=5e-4)
+
+
+def test_static_friction_limits():
+    g = math.radians(15)
+    assert float(friction.mu_sta(g, 0.0)) == pytest.approx(3.86e-2, rel=1e-14)
+    assert float(friction.mu_sta(g, 1e5)) == pytest.approx(3.86e-2 + 1.34e-1 + 4.5e-3 * 15, rel=1e-12)
+
+
+def test_dynamic_friction_inward_and_outward_are_opposite():
+    theta = np.linspace(0, 2 * np.pi, 13)  # holds θ = 90°
+    g = math.radians(15)
+    inward = friction.mu_dyn(theta, g, stroke="in")
+    np.testing.assert_allclose(friction.mu_dyn(theta, g, stroke="out"), -inward, rtol=1e-15)
+    # Over θ the inward coefficient swings by (γ°/15)(C_d1 μ_slp − C_d2) above μ_S/R.
+    assert float(jnp.min(inward)) == pytest.approx(0.585 * g * 0.06 + (1 - 0.585 * g) * 0.007, rel=1e-12)
+    assert float(jnp.max(inward) - jnp.min(inward)) == pytest.approx(0.4 * 0.06 - 8.4e-3, rel=1e-12)
+
+
+@pytest.mark.parametrize("gamma_deg", [0.0, 7.5, 20.0, 45.0])
+def test_printed_gaf_equals_independent_evaluation(gamma_deg):
+    ours = friction.gaf(THETA, math.radians(gamma_deg), 1000.0, 25.0, PARAMS_EXAMPLE)
+    theirs = printed_gaf(THETA, gamma_deg, 1000.0, 25.0, 0.04, 0.007)
+    np.testing.assert_allclose(ours, theirs, rtol=1e-12, atol=1e-9)
+
+
+def test_printed_gaf_is_a_third_order_square_wave_linear_in_torque_and_inverse_in_R():
+    g = math.radians(20)
+    base = np.asarray(friction.gaf(THETA, g, 1000.0, 25.0))
+    np.testing.assert_allclose(friction.gaf(THETA + 2 * np.pi / 3, g, 1000.0, 25.0), base, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(friction.gaf(THETA + np.pi / 3, g, 1000.0, 25.0), -base, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(friction.gaf(THETA, g, 250.0, 25.0), 0.25 * base, rtol=1e-14)
+    np.testing.assert_allclose(friction.gaf(THETA, g, 1000.0, 50.0), 0.5 * base, rtol=1e-14)
+    sign_changes = np.count_nonzero(np.diff(np.sign(base[:-1])))
+    assert sign_changes == 6  # six reversals per revolution: third order
+
+
+def test_printed_model_keeps_a_lambda_square_wave_at_zero_angle():
+    force = np.asarray(friction.gaf(THETA, 0.0, 1000.0, 25.0, PARAMS_EXAMPLE))
+    level = 2000.0 * 1000.0 / (3 * 25.0) * 0.007
+    np.testing.assert_allclose(np.abs(force[np.abs(force) > 0]), level, rtol=1e-12)
+
+
+def test_stroke_model_vanishes_at_zero_angle_and_decreases_towards_it():
+    gammas = np.radians([20.0, 10.0, 5.0, 2.0, 1.0, 0.5, 0.2, 0.05, 0.0])
+    rms = [float(jnp.sqrt(jnp.mean(friction.gaf(THETA, g, 1000.0, 25.0, model="stroke") ** 2))) for g in gammas]
+    assert all(a > b for a, b in zip(rms, rms[1:]))
+    assert rms[-1] == 0.0
+    dgaf = jax.grad(lambda g: jnp.sum(friction.gaf(THETA, g, 1000.0, 25.0, model="stroke")))(0.0)
+    assert np.isfinite(float(dgaf))
+
+
+def test_stroke_model_tends_to_the_printed_one_away_from_zero_angle():
+    g = math.radians(20)
+    theta = THETA + 1e-3  # off the reversal points, where the printed sign is 0
+    printed = np.asarray(friction.gaf(theta, g, 1000.0, 25.0))
+    for width, tol in ((1e-2, 0.02), (1e-4, 2e-4)):
+        stroke = np.asarray(friction.gaf(theta, g, 1000.0, 25.0, model="stroke", width=width))
+        rms_printed, rms_stroke = np.sqrt(np.mean(printed**2)), np.sqrt(np.mean(stroke**2))
+        assert rms_stroke == pytest.approx(rms_printed, rel=tol)
+
+
+def test_halfshaft_gaf_is_the_printed_model_on_the_independent_kinematics():
+    layout = seed_case("N")
+    result = friction.gaf_halfshaft(layout, 1000.0, PARAMS_EXAMPLE, n_theta=360)
+    theta = np.asarray(period_grid(360, jnp.float64))
+    psi, gamma = reference.solve(theta, layout.R, layout.l, layout.gamma0)
+    # Lee's roller angle is ψ_i + 90°; γ varies per θ.
+    expected = np.array([printed_gaf(p + np.pi / 2, math.degrees(g), 1000.0, layout.R, 0.04, 0.007) for p, g in zip(psi, gamma)])
+    np.testing.assert_allclose(result.force, expected, rtol=1e-9, atol=1e-8)
+    assert float(result.rms) == pytest.approx(np.sqrt(np.mean(expected**2)), rel=1e-9)
+    assert float(result.peak) == pytest.approx(np.abs(expected).max(), rel=1e-12)
+    fft = np.fft.rfft(expected) / len(expected)
+    assert float(result.third_order) == pytest.approx(2 * np.abs(fft[1]), rel=1e-9)  # one period = order 3
+
+
+def test_halfshaft_stroke_model_at_zero_layout_angle():
+    result = friction.gaf_halfshaft(Layout(25.0, 500.0, 0.0), 1000.0, model="stroke")
+    assert float(result.rms) == 0.0 and float(result.peak) == 0.0
+    grads = jax.grad(lambda lay: friction.gaf_halfshaft(lay, 1000.0, model="stroke").rms)(Layout(25.0, 500.0, 0.0))
+    assert all(np.isfinite(float(v)) for v in jax.tree_util.tree_leaves(grads))
+
+
+def test_zero_torque_gives_zero_force():
+    assert float(friction.gaf_halfshaft(seed_case("N"), 0.0).rms) == 0.0
+
+
+def central_difference(f, x, step):
+    return (f(x + step) - f(x - step)) / (2 * step)
+
+
+@pytest.mark.parametrize("model", ["stroke", "printed"])
+def test_gradients_of_halfshaft_gaf_rms_match_finite_differences(model):
+    layout = Layout.from_degrees(28.0, 450.0, 18.0)
+    params = friction.GREASE_A
+
+    def rms(lay, torque, p):
+        return friction.gaf_halfshaft(lay, torque, p, model=model).rms
+
+    g_params = jax.grad(rms, argnums=2)(layout, 900.0, params)
+    for name in params.__dataclass_fields__:
+        value = getattr(params, name)
+        step = 1e-5 * abs(value)
+        fd = central_difference(lambda v: float(rms(layout, 900.0, params.replace(**{name: v}))), value, step)
+        assert float(getattr(g_params, name)) == pytest.approx(fd, rel=1e-4, abs=1e-9), name
+    g_layout, g_torque = jax.grad(rms, argnums=(0, 1))(layout, 900.0, params)
+    assert float(g_torque) == pytest.approx(float(rms(layout, 900.0, params)) / 900.0, rel=1e-12)
+    for name in ("R", "l", "gamma0"):
+        base = getattr(layout, name)
+        step = 1e-6 * base
+        fields = {"R": layout.R, "l": layout.l, "gamma0": layout.gamma0}
+
+        def moved(v):
+            return float(rms(Layout(**{**fields, name: v}), 900.0, params))
+
+        assert float(getattr(g_layout, name)) == pytest.approx(central_difference(moved, base, step), rel=1e-4), name
+
+
+def test_float32_gaf_close_to_float64(float32_default):
+    rms32 = friction.gaf_halfshaft(seed_case("N"), 1000.0, model="stroke").rms
+    assert rms32.dtype == jnp.float32
+    with jax.enable_x64(True):
+        rms64 = float(friction.gaf_halfshaft(seed_case("N"), 1000.0, model="stroke").rms)
+    assert float(rms32) == pytest.approx(rms64, rel=1e-5)
+
+
+def test_rolling_resistance_utilities():
+    assert float(friction.rolling_resistance_hysteresis(0.3, 20.0, 0.1, contact="line")) == pytest.approx(0.1 * 0.6 / (3 * math.pi * 20))
+    assert float(friction.rolling_resistance_hysteresis(0.3, 20.0, 0.1)) == pytest.approx(0.1 * 0.9 / (16 * 20))
+    assert float(friction.rolling_resistance_microslip(2.0, 20.0, 0.06)) == pytest.approx(0.08 * 0.06 * 0.01)
+
+
+def test_friction_from_trunnion_force_recovers_a_known_coefficient():
+    """Forces built from a normal N and a friction P along the formula's (orthonormal) directions."""
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        theta, gamma = rng.uniform(0, 2 * np.pi), rng.uniform(0, 0.8)
+        st, ct, sg, cg = np.sin(theta), np.cos(theta), np.sin(gamma), np.cos(gamma)
+        normal_dir = np.array([st**2 + cg * ct**2, ct * sg, -st * ct * (cg - 1)])
+        friction_dir = np.array([-ct * sg, cg, st * sg])
+        assert np.linalg.norm(normal_dir) == pytest.approx(1, rel=1e-14) and abs(normal_dir @ friction_dir) < 1e-15
+        N, mu = rng.uniform(500, 5000), rng.uniform(0.02, 0.3)
+        F = N * normal_dir + mu * N * friction_dir
+        assert float(friction.friction_from_trunnion_force(*F, theta, gamma)) == pytest.approx(mu, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda: friction.gaf(0.0, 0.3, -5.0, 25.0), "torque = -5.0 is outside the allowed range: torque ≥ 0 N·m"),
+        (lambda: friction.gaf(0.0, 0.3, 100.0, 0.0), "R = 0.0 is outside the allowed range: R > 0"),
+        (lambda: friction.gaf(0.0, 0.3, 100.0, 25.0, model="smooth"), "model = 'smooth' is not allowed; allowed: printed, stroke"),
+        (lambda: friction.gaf_halfshaft(seed_case("N"), -1.0), "torque = -1.0 is outside the allowed range"),
+        (lambda: friction.mu_dyn(0.0, 0.3, stroke="up"), "stroke = 'up' is not allowed; allowed: in, out"),
+        (lambda: friction.FrictionParams(mu_slp=-0.1), "FrictionParams.mu_slp = -0.1 is outside the allowed range: mu_slp ≥ 0"),
+        (lambda: friction.rolling_resistance_hysteresis(0.3, 20.0, 0.1, contact="point"), "contact = 'point' is not allowed"),
+    ],
+)
+def test_bad_inputs_raise_clear_errors(call, message):
+    with pytest.raises(ValueError) as info:
+        call()
+    assert message in str(info.value)

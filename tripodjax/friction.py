@@ -1,0 +1,300 @@
+"""Roller friction and the generated axial force, GAF (seed §3.2, the Lee–Polycarpou model).
+
+The empirical fits take the articulation angle γ in **degrees** (μ_sta, μ_avg
+and the factor γ/15) and in **radians** in the slip-to-roll ratio
+S/R = R_s γ (3.2.5); the API takes γ in rad everywhere and converts inside.
+The roller angle θ of the fits is the Lee model's: a roller moves inward for
+90° < θ < 270° and outward otherwise (§3.2.5, figure 3.2.7).
+
+    μ_sta = C_s1 + (C_s2 + C_s3 γ°)(1 − exp(−C_s4 T_d))                          (3.2.9)
+    μ_avg = μ_sta (1 + (C_s5 μ_slp − C_s6) γ°) + C_s7 μ_slp − C_s8
+            + (γ°/15) C_s9 (sin θ − 1)                                          (3.2.10)
+    μ_dyn = ±(γ°/15)(C_d1 μ_slp − C_d2)|sin θ| ± μ_S/R   (+ inward, − outward)  (3.2.11)
+    μ_S/R = R_s γ μ_slp + (1 − R_s γ) λ                                         (3.2.12)
+    μ_GAF,i = sgn(sin(θ_i + 90°)) |μ_dyn(θ_i)|                                  (3.2.14)
+    GAF = (2 T_d / (3R)) Σ_i μ_GAF,i                                            (3.2.15)
+
+Units: torque N·m, R mm (GAF = 2000 T_d Σ μ / (3 R) in N), angles rad.
+"""
+
+import functools
+import math
+
+import jax
+import jax.numpy as jnp
+
+from tripodjax import joint
+from tripodjax._checks import check_non_negative, check_positive
+from tripodjax._pytree import pytree_dataclass
+from tripodjax.halfshaft import solve_halfshaft
+from tripodjax.kinematics import period_grid
+
+GAF_MODELS = ("printed", "stroke")
+STROKES = ("in", "out")
+DEFAULT_STROKE_WIDTH = 0.01  # [–] width of the smooth stroke sign, in units of tan γ · cos θ
+
+
+@pytree_dataclass
+class FrictionParams:
+    """Constants of the Lee–Polycarpou friction model (defaults: the seed's, grease A).
+
+    Attributes:
+        C_s1 … C_s9: constants of μ_sta and μ_avg (3.2.9, 3.2.10) [–, per degree
+            for C_s3, C_s5, C_s6 terms as printed, C_s4 per N·m].
+        C_d1, C_d2: constants of μ_dyn (3.2.11) [–].
+        R_s: slip-to-roll factor, S/R = R_s γ with γ in rad (3.2.5) [–].
+        mu_slp: pure-sliding friction coefficient μ_slp (pin-on-disk) [–].
+        lam: rolling resistance λ [–] (see :func:`rolling_resistance_hysteresis`,
+            :func:`rolling_resistance_microslip`).
+
+    A pytree: every field is differentiable (``jax.grad`` returns a FrictionParams).
+    """
+
+    C_s1: float = 3.86e-2
+    C_s2: float = 1.34e-1
+    C_s3: float = 4.50e-3
+    C_s4: float = 2.35e-2
+    C_s5: float = 3.33e-2
+    C_s6: float = 1.04e-2
+    C_s7: float = 1.00e-1
+    C_s8: float = 2.47e-2
+    C_s9: float = 4.25e-2
+    C_d1: float = 4.00e-1
+    C_d2: float = 8.40e-3
+    R_s: float = 0.585
+    mu_slp: float = 0.06
+    lam: float = 0.007
+
+    def __post_init__(self):
+        for name in ("mu_slp", "lam", "R_s"):
+            check_non_negative(f"FrictionParams.{name}", getattr(self, name))
+
+    def replace(self, **changes):
+        """A copy with some fields changed, e.g. ``params.replace(mu_slp=0.04)``."""
+        fields = {name: getattr(self, name) for name in self.__dataclass_fields__}
+        fields.update(changes)
+        return FrictionParams(**fields)
+
+
+GREASE_A = FrictionParams(mu_slp=0.06)
+GREASE_B = FrictionParams(mu_slp=0.09)
+DRY = FrictionParams(mu_slp=0.30)
+
+
+def _degrees(gamma):
+    return gamma * (180.0 / math.pi)
+
+
+def mu_sta(gamma, torque, params=GREASE_A):
+    """Static friction coefficient μ_sta [–] (3.2.9) at articulation γ [rad] and torque T_d [N·m]."""
+    g = _degrees(gamma)
+    return params.C_s1 + (params.C_s2 + params.C_s3 * g) * (1.0 - jnp.exp(-params.C_s4 * torque))
+
+
+def mu_avg(theta, gamma, torque, params=GREASE_A):
+    """Mean friction coefficient of a roller at its angle θ [rad] (3.2.10)."""
+    g = _degrees(gamma)
+    static = mu_sta(gamma, torque, params)
+    return (
+        static * (1.0 + (params.C_s5 * params.mu_slp - params.C_s6) * g)
+        + params.C_s7 * params.mu_slp
+        - params.C_s8
+        + g / 15.0 * params.C_s9 * (jnp.sin(theta) - 1.0)
+    )
+
+
+def mu_slip_to_roll(gamma, params=GREASE_A):
+    """Combined sliding–rolling coefficient μ_S/R = R_s γ μ_slp + (1 − R_s γ) λ (3.2.12), γ in rad."""
+    slip = params.R_s * gamma
+    return slip * params.mu_slp + (1.0 - slip) * params.lam
+
+
+def mu_dyn(theta, gamma, params=GREASE_A, stroke="in"):
+    """Dynamic friction coefficient (3.2.11) for the inward (+) or outward (−) stroke."""
+    if stroke not in STROKES:
+        raise ValueError(f"stroke = {stroke!r} is not allowed; allowed: {', '.join(STROKES)}")
+    sign = 1.0 if stroke == "in" else -1.0
+    g = _degrees(gamma)
+    return sign * (g / 15.0 * (params.C_d1 * params.mu_slp - params.C_d2) * jnp.abs(jnp.sin(theta)) + mu_slip_to_roll(gamma, params))
+
+
+CONTACTS = ("line", "elliptical")
+
+
+def rolling_resistance_hysteresis(a, rolling_radius, loss_factor, contact="elliptical"):
+    """Rolling resistance λ [–] from elastic hysteresis (3.2.6, 3.2.7).
+
+    λ = α · 2a/(3π R) for a line contact, α · 3a/(16 R) for an elliptical one,
+    with a the contact half-width in the rolling direction [mm] (e.g.
+    ``hertz.roller_contact(...).b``), R the rolling radius [mm] and α the
+    hysteresis loss factor [–].
+    """
+    if contact not in CONTACTS:
+        raise ValueError(f"contact = {contact!r} is not allowed; allowed: {', '.join(CONTACTS)}")
+    check_positive(rolling_radius=rolling_radius)
+    check_non_negative("a", a, " mm")
+    check_non_negative("loss_factor", loss_factor)
+    factor = 2.0 / (3.0 * math.pi) if contact == "line" else 3.0 / 16.0
+    return loss_factor * factor * a / rolling_radius
+
+
+def rolling_resistance_microslip(b, rolling_radius, mu):
+    """Rolling resistance λ = 0.08 μ b²/R² [–] from micro-slip (Heathcote, 3.2.8).
+
+    b: half of the larger width of the contact ellipse [mm]; R: rolling
+    radius [mm]; μ: sliding friction coefficient [–].
+    """
+    check_positive(rolling_radius=rolling_radius)
+    check_non_negative("b", b, " mm")
+    check_non_negative("mu", mu)
+    return 0.08 * mu * (b / rolling_radius) ** 2
+
+
+def friction_from_trunnion_force(F_x, F_y, F_z, theta, gamma):
+    """Friction coefficient from a triaxial trunnion force measurement (3.2.4).
+
+    μ = [−cos θ sin γ F_x + cos γ F_y + sin θ sin γ F_z]
+        / [(sin²θ + cos γ cos²θ) F_x + cos θ sin γ F_y − sin θ cos θ (cos γ − 1) F_z],
+
+    the friction (tangential) over the normal component of the measured force
+    (F_x, F_y, F_z) [N] at roller angle θ and articulation γ [rad]; at γ = 0 it
+    is F_y / F_x.
+    """
+    sg, cg, st, ct = jnp.sin(gamma), jnp.cos(gamma), jnp.sin(theta), jnp.cos(theta)
+    tangential = -ct * sg * F_x + cg * F_y + st * sg * F_z
+    normal = (st**2 + cg * ct**2) * F_x + ct * sg * F_y - st * ct * (cg - 1.0) * F_z
+    return tangential / normal
+
+
+def _stroke_weight(theta_i, stroke_rate_i, model, width):
+    """Sign of each roller's contribution: the printed sgn(sin(θ_i + 90°)), or its smooth stroke form."""
+    if model == "printed":
+        return jnp.sign(jnp.cos(theta_i))
+    return jnp.tanh(stroke_rate_i / width)
+
+
+def _gaf_force(theta_i, gamma, stroke_rate_i, torque, R, params, model, width):
+    """GAF [N] from the roller angles θ_i (…, 3), γ and the rollers' normalised stroke rates."""
+    magnitude = jnp.abs(mu_dyn(theta_i, gamma[..., None], params, "in"))
+    mu_gaf = _stroke_weight(theta_i, stroke_rate_i, model, width) * magnitude
+    return 2000.0 * torque / (3.0 * R) * jnp.sum(mu_gaf, axis=-1)
+
+
+def _check_model(model, width):
+    if model not in GAF_MODELS:
+        raise ValueError(f"model = {model!r} is not allowed; allowed: {', '.join(GAF_MODELS)}")
+    check_positive(width=width)
+
+
+def _check_load(torque, R):
+    check_non_negative("torque", torque, " N·m")
+    check_positive(R=R)
+
+
+def gaf(theta, gamma, torque, R, params=GREASE_A, model="printed", width=DEFAULT_STROKE_WIDTH):
+    """Generated axial force [N] at roller-1 angle θ [rad] (3.2.14–3.2.15).
+
+    Args:
+        theta: angle of roller 1 in the Lee model's convention [rad]; the
+            others are at θ + 120° and θ + 240°.
+        gamma: articulation angle [rad] (constant: the single joint).
+        torque: joint torque T_d [N·m], ≥ 0.
+        R: track pitch-circle radius [mm], > 0.
+        params: :class:`FrictionParams`.
+        model: ``"printed"`` — the seed's 3.2.14–3.2.15 exactly (a ±λ square
+            wave survives at γ = 0); ``"stroke"`` — each roller's sign is
+            replaced by tanh(s_i / width), where s_i = tan γ · cos θ_i is the
+            roller's stroke velocity normalised by R θ̇ (first order, §2.11),
+            so GAF → 0 as γ → 0 and derivatives exist everywhere. For
+            γ ≫ width the two models differ only where |cos θ_i| < width/tan γ,
+            i.e. within about width/tan γ rad of each stroke reversal.
+        width: smoothing width of the stroke model [–] (default 0.01: at
+            γ = 20° the sign ramps over ±1.6° of roller angle).
+
+    Differentiable w.r.t. γ, torque, R and every FrictionParams field.
+    """
+    _check_model(model, width)
+    _check_load(torque, R)
+    theta_i = joint.roller_angles(jnp.asarray(theta, jnp.result_type(theta, gamma, 0.0)))
+    gamma = jnp.broadcast_to(jnp.asarray(gamma, theta_i.dtype), theta_i.shape[:-1])
+    stroke_rate = jnp.tan(gamma)[..., None] * jnp.cos(theta_i)
+    return _gaf_force(theta_i, gamma, stroke_rate, torque, R, params, model, width)
+
+
+def _safe_rms(x, axis=-1):
+    """Root mean square with a finite (zero) derivative where it vanishes."""
+    mean_square = jnp.mean(x**2, axis=axis)
+    positive = mean_square > 0
+    return jnp.where(positive, jnp.sqrt(jnp.where(positive, mean_square, 1.0)), 0.0)
+
+
+def harmonic_amplitude(signal, order_per_sample_period):
+    """Amplitude of the harmonic that completes ``order_per_sample_period`` cycles over the samples."""
+    n = signal.shape[-1]
+    phase = 2.0 * jnp.pi * order_per_sample_period * jnp.arange(n) / n
+    c = jnp.sum(signal * jnp.cos(phase), axis=-1)
+    s = jnp.sum(signal * jnp.sin(phase), axis=-1)
+    return 2.0 / n * jnp.sqrt(c**2 + s**2)
+
+
+@pytree_dataclass
+class GAFResult:
+    """Generated axial force of a halfshaft over one revolution.
+
+    Attributes:
+        theta: input angles of one period 0 ≤ θ < 2π/3 [rad] (GAF has period 2π/3).
+        force: GAF at those angles [N].
+        rms: root mean square over a revolution [N].
+        peak: largest |GAF| [N].
+        third_order: amplitude of the third rotating order [N].
+    """
+
+    theta: jax.Array
+    force: jax.Array
+    rms: jax.Array
+    peak: jax.Array
+    third_order: jax.Array
+
+
+def gaf_halfshaft(layout, torque, params=GREASE_A, n_theta=360, model="printed", width=DEFAULT_STROKE_WIDTH):
+    """GAF of a halfshaft over a revolution, from the instantaneous γ(θ) and roller angles.
+
+    The Lee model's roller angle is θ_L,i = ψ_i + 90°: the kinematics measure
+    ψ_i from the articulation plane, where a roller is at the end of its
+    stroke, the Lee model from mid-stroke. The stroke model's rate is the
+    exact s_i = −(1/R) dZ_i/dθ of each roller's axial position (2.6.2, with
+    the spider plunge c), by forward-mode AD through the implicit solve; at
+    first order it is tan γ cos θ_L,i, as in :func:`gaf`.
+
+    Differentiable w.r.t. the layout (R, l, γ0), the torque and every
+    FrictionParams field, with derivatives of the solve from the implicit
+    function theorem.
+    """
+    _check_model(model, width)
+    _check_load(torque, layout.R)
+    return _gaf_halfshaft(layout, torque, params, width, n_theta=n_theta, model=model)
+
+
+@functools.partial(jax.jit, static_argnames=("n_theta", "model"))
+def _gaf_halfshaft(layout, torque, params, width, *, n_theta, model):
+    dtype = jnp.result_type(layout.R, layout.l, layout.gamma0, 0.0)
+    theta = period_grid(n_theta, dtype)
+    R, l, gamma0 = (jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0))
+
+    def kinematics(t):
+        sol = solve_halfshaft(layout, t)
+        _, _, z_rel = joint.roller_centres(R, sol.gamma, sol.psi)
+        z = joint.spider_offset(l, gamma0, sol.gamma)[..., None] + z_rel
+        return (sol.psi, sol.gamma), z
+
+    ((psi, gamma), _), (_, dz) = jax.jvp(kinematics, (theta,), (jnp.ones_like(theta),))
+    theta_lee = joint.roller_angles(psi) + 0.5 * jnp.pi
+    force = _gaf_force(theta_lee, gamma, -dz / R, torque, R, params, model, width)
+    return GAFResult(
+        theta=theta,
+        force=force,
+        rms=_safe_rms(force),
+        peak=jnp.max(jnp.abs(force)),
+        third_order=harmonic_amplitude(force, 1),
+    )
+
