@@ -8,6 +8,7 @@ only at the user-facing edge). Physics layers, after the seed thesis:
 - :mod:`tripodjax.halfshaft`: the halfshaft residual pair solved per θ (§2.9).
 - :mod:`tripodjax.kinematics`: metrics over a revolution (§2.10, §2.11.3).
 - :mod:`tripodjax.motion`: velocities and accelerations, exact and first order (§2.11).
+- :mod:`tripodjax.sweep`: batch sweeps over layouts, chunked and sharded.
 - :mod:`tripodjax.friction`: friction and the generated axial force, GAF (§3.2).
 - :mod:`tripodjax.hertz`: Hertz contact, torque capacities, minimum size, life (§4.2).
 - :mod:`tripodjax.catalogue`: GE and GI catalogue sizes (§1.1.2).
@@ -21,6 +22,7 @@ from tripodjax.halfshaft import HalfshaftSolution, solve_halfshaft
 from tripodjax.kinematics import KinematicMetrics, kinematic_metrics
 from tripodjax.layout import TABLE_2_1, Layout, seed_case
 from tripodjax.motion import JointMotion, first_order_motion, halfshaft_motion
+from tripodjax.sweep import sweep
 
 __version__ = "0.1.0"
 
@@ -39,4 +41,5 @@ __all__ = [
     "kinematic_metrics",
     "seed_case",
     "solve_halfshaft",
+    "sweep",
 ]

@@ -26,8 +26,7 @@ import jax.numpy as jnp
 from tripodjax import joint
 from tripodjax._checks import check_non_negative, check_positive
 from tripodjax._pytree import pytree_dataclass
-from tripodjax.halfshaft import solve_halfshaft
-from tripodjax.kinematics import period_grid
+from tripodjax.kinematics import check_fidelity, revolution
 
 GAF_MODELS = ("printed", "stroke")
 STROKES = ("in", "out")
@@ -256,15 +255,37 @@ class GAFResult:
     third_order: jax.Array
 
 
-def gaf_halfshaft(layout, torque, params=GREASE_A, n_theta=360, model="printed", width=DEFAULT_STROKE_WIDTH):
+def gaf_from_revolution(layout, sol, rates, torque, params, model, width):
+    """GAF over a revolution from a halfshaft solution and its θ-rates (see :func:`gaf_halfshaft`)."""
+    dtype = sol.theta.dtype
+    R, l, gamma0 = (jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0))
+
+    def axial_positions(psi, gamma):
+        _, _, z_rel = joint.roller_centres(R, gamma, psi)
+        return joint.spider_offset(l, gamma0, gamma)[..., None] + z_rel
+
+    _, dz = jax.jvp(axial_positions, (sol.psi, sol.gamma), (rates.psi, rates.gamma))
+    theta_lee = joint.roller_angles(sol.psi) + 0.5 * jnp.pi
+    force = _gaf_force(theta_lee, sol.gamma, -dz / R, torque, R, params, model, width)
+    return GAFResult(
+        theta=sol.theta,
+        force=force,
+        rms=_safe_rms(force),
+        peak=jnp.max(jnp.abs(force)),
+        third_order=harmonic_amplitude(force, 1),
+    )
+
+
+def gaf_halfshaft(layout, torque, params=GREASE_A, n_theta=360, model="printed", width=DEFAULT_STROKE_WIDTH, fidelity="newton"):
     """GAF of a halfshaft over a revolution, from the instantaneous γ(θ) and roller angles.
 
     The Lee model's roller angle is θ_L,i = ψ_i + 90°: the kinematics measure
     ψ_i from the articulation plane, where a roller is at the end of its
     stroke, the Lee model from mid-stroke. The stroke model's rate is the
     exact s_i = −(1/R) dZ_i/dθ of each roller's axial position (2.6.2, with
-    the spider plunge c), by forward-mode AD through the implicit solve; at
-    first order it is tan γ cos θ_L,i, as in :func:`gaf`.
+    the spider plunge c), by forward-mode AD through the solve; at first
+    order it is tan γ cos θ_L,i, as in :func:`gaf`. ``fidelity`` picks the
+    kinematics (:func:`~tripodjax.kinematic_metrics`).
 
     Differentiable w.r.t. the layout (R, l, γ0), the torque and every
     FrictionParams field, with derivatives of the solve from the implicit
@@ -272,29 +293,11 @@ def gaf_halfshaft(layout, torque, params=GREASE_A, n_theta=360, model="printed",
     """
     _check_model(model, width)
     _check_load(torque, layout.R)
-    return _gaf_halfshaft(layout, torque, params, width, n_theta=n_theta, model=model)
+    check_fidelity(fidelity)
+    return _gaf_halfshaft(layout, torque, params, width, n_theta=n_theta, model=model, fidelity=fidelity)
 
 
-@functools.partial(jax.jit, static_argnames=("n_theta", "model"))
-def _gaf_halfshaft(layout, torque, params, width, *, n_theta, model):
-    dtype = jnp.result_type(layout.R, layout.l, layout.gamma0, 0.0)
-    theta = period_grid(n_theta, dtype)
-    R, l, gamma0 = (jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0))
-
-    def kinematics(t):
-        sol = solve_halfshaft(layout, t)
-        _, _, z_rel = joint.roller_centres(R, sol.gamma, sol.psi)
-        z = joint.spider_offset(l, gamma0, sol.gamma)[..., None] + z_rel
-        return (sol.psi, sol.gamma), z
-
-    ((psi, gamma), _), (_, dz) = jax.jvp(kinematics, (theta,), (jnp.ones_like(theta),))
-    theta_lee = joint.roller_angles(psi) + 0.5 * jnp.pi
-    force = _gaf_force(theta_lee, gamma, -dz / R, torque, R, params, model, width)
-    return GAFResult(
-        theta=theta,
-        force=force,
-        rms=_safe_rms(force),
-        peak=jnp.max(jnp.abs(force)),
-        third_order=harmonic_amplitude(force, 1),
-    )
-
+@functools.partial(jax.jit, static_argnames=("n_theta", "model", "fidelity"))
+def _gaf_halfshaft(layout, torque, params, width, *, n_theta, model, fidelity):
+    sol, rates = revolution(layout, n_theta, fidelity, with_rates=True)
+    return gaf_from_revolution(layout, sol, rates, torque, params, model, width)

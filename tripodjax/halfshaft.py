@@ -19,14 +19,17 @@ scaled Jacobian tends to diag(−1, 1) as γ0 → 0, so the solve stays regular 
 γ0 = 0, where the solution is ψ = θ, γ = 0 exactly.
 
 Derivatives of the solution (w.r.t. θ, R, l, γ0, any order) come from the
-implicit function theorem through ``jax.lax.custom_root``; the Newton
-iterations are never differentiated.
+implicit function theorem, in a ``jax.custom_jvp`` rule that solves with the
+closed-form Jacobian at the solution; the Newton iterations are never
+differentiated. The solve works elementwise on arrays of any shape.
 """
 
 import functools
 
 import jax
 import jax.numpy as jnp
+import numpy as np
+from jax.custom_derivatives import SymbolicZero
 
 from tripodjax._pytree import pytree_dataclass
 
@@ -34,34 +37,87 @@ DEFAULT_MAX_STEPS = 24
 _RTOL_EPS_MULTIPLE = 32.0
 
 
-def _sinc(x):
-    """sin(x)/x, smooth (with exact derivatives) at x = 0."""
-    return jnp.sinc(x / jnp.pi)
+def _sinc(xp, y, sin_y):
+    """sin(y)/y from y and sin(y); a Taylor branch near 0 keeps values and derivatives exact."""
+    small = xp.abs(y) < 1e-4
+    safe = xp.where(small, 1.0, y)
+    return xp.where(small, 1.0 - y * y / 6.0, sin_y / safe)
 
 
-def _scaled_terms(R, l, gamma0, theta, x):
-    """Shared intermediate quantities of the scaled residual and its Jacobian."""
-    delta, v = x[..., 0], x[..., 1]
-    half0 = 0.5 * gamma0  # γ0/2
+def _working_arrays(layout, theta):
+    """R, l, γ0 and θ as arrays of the working dtype (that of the inputs combined), unbroadcast."""
+    dtype = jnp.result_type(layout.R, layout.l, layout.gamma0, theta, 0.0)
+    return tuple(jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0, theta))
+
+
+def layout_constants(xp, R, l, gamma0, theta):
+    """The loop invariants of the scaled pair for array module ``xp`` (jax.numpy or numpy)."""
+    half0 = 0.5 * gamma0
+    s0, c0 = xp.sin(half0), xp.cos(half0)
     k = R / (2.0 * l)
-    h_scaled = jnp.cos(half0) + k * jnp.sin(half0)  # −h / (2 l sin(γ0/2))
-    half_gamma = half0 * (1.0 + v)  # γ/2
-    gamma = 2.0 * half_gamma
-    sinc0 = _sinc(half0)
-    # rho = sin(γ/2)/sin(γ0/2), sigma = sin((γ−γ0)/2)/sin(γ0/2), both regular at γ0 = 0
-    rho = (1.0 + v) * _sinc(half_gamma) / sinc0
-    sigma = v * _sinc(half0 * v) / sinc0
-    three_psi = 3.0 * (theta - delta)
     return dict(
-        delta=delta, v=v, half0=half0, k=k, h_scaled=h_scaled, half_gamma=half_gamma,
-        gamma=gamma, sinc0=sinc0, rho=rho, sigma=sigma, three_psi=three_psi,
-        mid=half0 * (2.0 + v),  # (γ + γ0)/2
-        q=jnp.sin(half_gamma) * rho,  # sin²(γ/2)/sin(γ0/2)
+        half0=half0, s0=s0, c0=c0, k=k,
+        H=c0 + k * s0,  # −h / (2 l sin(γ0/2)), 2.9.3
+        sinc0=_sinc(xp, half0, s0),
+        sin_g0=2.0 * s0 * c0, cos_g0=1.0 - 2.0 * s0**2,
+        sin_15t=xp.sin(1.5 * theta), cos_15t=xp.cos(1.5 * theta),
     )
 
 
+def scaled_system(xp, consts, delta, v):
+    """Scaled residual (g1, g2) and closed-form Jacobian of the pair at (Δ, v).
+
+    Every angle is built from two sine–cosine pairs, of Δ/2 and of
+    (γ − γ0)/2 = (γ0/2)·v, and the loop invariants of :func:`layout_constants`
+    (angle-addition and triple-angle identities), so an iteration costs four
+    transcendental functions. Returns ``(g1, g2), ((j11, j12), (j21, j22))``.
+    """
+    half0, s0, c0, k, H = (consts[n] for n in ("half0", "s0", "c0", "k", "H"))
+    sd, cd = xp.sin(0.5 * delta), xp.cos(0.5 * delta)
+    y = half0 * v
+    sy, cy = xp.sin(y), xp.cos(y)
+    sigma = v * _sinc(xp, y, sy) / consts["sinc0"]  # sin((γ−γ0)/2)/sin(γ0/2)
+    rho = cy + c0 * sigma  # sin(γ/2)/sin(γ0/2)
+    sin_half_gamma = s0 * cy + c0 * sy
+    cos_half_gamma = c0 * cy - s0 * sy
+    q = sin_half_gamma * rho  # sin²(γ/2)/sin(γ0/2)
+    cos_g = 1.0 - 2.0 * sin_half_gamma**2
+    sin_g = 2.0 * sin_half_gamma * cos_half_gamma
+    sin_mid = consts["sin_g0"] * cy + consts["cos_g0"] * sy  # m = (γ + γ0)/2
+    cos_mid = consts["cos_g0"] * cy - consts["sin_g0"] * sy
+    s3d, c3d = sd * (3.0 - 4.0 * sd**2), cd * (4.0 * cd**2 - 3.0)  # sin, cos of 3Δ/2
+    sp = consts["sin_15t"] * c3d - consts["cos_15t"] * s3d  # sin(3ψ/2), ψ = θ − Δ
+    cp = consts["cos_15t"] * c3d + consts["sin_15t"] * s3d
+    sin3, cos3 = 2.0 * sp * cp, 1.0 - 2.0 * sp**2
+    sin_delta, cos_delta = 2.0 * sd * cd, 1.0 - 2.0 * sd**2
+    g1 = -H * sin_delta - k * q * sin3 / cos_g
+    g2 = 2.0 * H * sd**2 + sigma * (cos_mid + k * sin_mid) - 2.0 * k * q * sp**2
+    dq_dv = 2.0 * half0 * rho * cos_half_gamma
+    j11 = -H * cos_delta + 3.0 * k * q * cos3 / cos_g
+    j12 = -k * sin3 * (dq_dv / cos_g + q * 2.0 * half0 * sin_g / cos_g**2)
+    j21 = H * sin_delta + 3.0 * k * q * sin3
+    j22 = (
+        cy / consts["sinc0"] * (cos_mid + k * sin_mid)
+        + sigma * half0 * (k * cos_mid - sin_mid)
+        - 2.0 * k * sp**2 * dq_dv
+    )
+    return (g1, g2), ((j11, j12), (j21, j22))
+
+
+def newton_step(residual, jacobian):
+    """The Newton step −J⁻¹ g of a 2×2 system by Cramer's rule, elementwise."""
+    (g1, g2), ((j11, j12), (j21, j22)) = residual, jacobian
+    det = j11 * j22 - j12 * j21
+    return -(g1 * j22 - j12 * g2) / det, -(j11 * g2 - g1 * j21) / det
+
+
+def first_order_amplitude(consts):
+    """e(γ0)/|h|, the first-order amplitude of Δ (§2.11): the unknowns' typical size."""
+    return consts["k"] * consts["s0"] / (consts["cos_g0"] * consts["H"])
+
+
 def scaled_residual(R, l, gamma0, theta, x):
-    """The pair 2.9.1–2.9.2 divided by 2 l sin(γ0/2), in x = (Δ, v). Dimensionless.
+    """The pair 2.9.1–2.9.2 divided by 2 l sin(γ0/2), in x = (Δ, v). Dimensionless, (..., 2).
 
     With k = R/(2l), H = cos(γ0/2) + k sin(γ0/2) (so h = −2 l sin(γ0/2) H),
     q = sin²(γ/2)/sin(γ0/2), σ = sin((γ−γ0)/2)/sin(γ0/2), m = (γ+γ0)/2:
@@ -70,46 +126,18 @@ def scaled_residual(R, l, gamma0, theta, x):
         g2 = 2H sin²(Δ/2) + σ (cos m + k sin m) − 2k q sin²(3ψ/2)   (2.9.2 − 2.9.3)
 
     g2 is F2 after subtracting the θ = 0 identity 2.9.3 term by term, so no
-    two large terms cancel. Returns an array of shape (..., 2).
+    two large terms cancel.
     """
-    t = _scaled_terms(R, l, gamma0, theta, x)
-    g1 = -t["h_scaled"] * jnp.sin(t["delta"]) - t["k"] * t["q"] * jnp.sin(t["three_psi"]) / jnp.cos(
-        t["gamma"]
-    )
-    g2 = (
-        2.0 * t["h_scaled"] * jnp.sin(0.5 * t["delta"]) ** 2
-        + t["sigma"] * (jnp.cos(t["mid"]) + t["k"] * jnp.sin(t["mid"]))
-        - 2.0 * t["k"] * t["q"] * jnp.sin(0.5 * t["three_psi"]) ** 2
-    )
+    consts = layout_constants(jnp, R, l, gamma0, theta)
+    (g1, g2), _ = scaled_system(jnp, consts, x[..., 0], x[..., 1])
     return jnp.stack([g1, g2], axis=-1)
 
 
 def scaled_jacobian(R, l, gamma0, theta, x):
     """Closed-form Jacobian ∂(g1, g2)/∂(Δ, v) of :func:`scaled_residual`, (..., 2, 2)."""
-    t = _scaled_terms(R, l, gamma0, theta, x)
-    k, q, H, half0 = t["k"], t["q"], t["h_scaled"], t["half0"]
-    s3, c3 = jnp.sin(t["three_psi"]), jnp.cos(t["three_psi"])
-    cg, sg = jnp.cos(t["gamma"]), jnp.sin(t["gamma"])
-    dq_dv = 2.0 * half0 * t["rho"] * jnp.cos(t["half_gamma"])
-    dsigma_dv = jnp.cos(half0 * t["v"]) / t["sinc0"]
-    mid = t["mid"]
-    j11 = -H * jnp.cos(t["delta"]) + 3.0 * k * q * c3 / cg
-    j12 = -k * s3 * (dq_dv / cg + q * 2.0 * half0 * sg / cg**2)
-    j21 = H * jnp.sin(t["delta"]) + 3.0 * k * q * s3
-    j22 = (
-        dsigma_dv * (jnp.cos(mid) + k * jnp.sin(mid))
-        + t["sigma"] * half0 * (-jnp.sin(mid) + k * jnp.cos(mid))
-        - 2.0 * k * jnp.sin(0.5 * t["three_psi"]) ** 2 * dq_dv
-    )
+    consts = layout_constants(jnp, R, l, gamma0, theta)
+    _, ((j11, j12), (j21, j22)) = scaled_system(jnp, consts, x[..., 0], x[..., 1])
     return jnp.stack([jnp.stack([j11, j12], -1), jnp.stack([j21, j22], -1)], -2)
-
-
-def _solve_2x2(j, b):
-    """Solve j @ x = b for one 2×2 system by Cramer's rule."""
-    det = j[0, 0] * j[1, 1] - j[0, 1] * j[1, 0]
-    return jnp.stack(
-        [(b[0] * j[1, 1] - j[0, 1] * b[1]) / det, (j[0, 0] * b[1] - b[0] * j[1, 0]) / det]
-    )
 
 
 def default_rtol(dtype):
@@ -117,56 +145,87 @@ def default_rtol(dtype):
     return _RTOL_EPS_MULTIPLE * float(jnp.finfo(dtype).eps)
 
 
-def _newton(R, l, gamma0, theta, rtol, max_steps):
-    """Newton iterations from Δ = v = 0 for one θ; returns (x, (residual, steps, converged))."""
-    dtype = jnp.result_type(theta)
-    # Typical size of the unknowns: the first-order amplitude e(γ0)/|h| of Δ (§2.11),
-    # which is also the floor of their rounding error; 0 at γ0 = 0 (exact zeros).
-    half0 = 0.5 * gamma0
-    k = R / (2.0 * l)
-    scale = k * jnp.sin(half0) / (jnp.cos(gamma0) * (jnp.cos(half0) + k * jnp.sin(half0)))
-    tiny = jnp.finfo(dtype).tiny
+def analytic_unknowns(xp, consts, theta):
+    """(Δ, v) of the closed form of :func:`analytic_halfshaft`; θ enters through sin 3θ, cos 3θ."""
+    k, s0, c0, H, half0 = (consts[n] for n in ("k", "s0", "c0", "H", "half0"))
+    sin3, cos3 = xp.sin(3.0 * theta), xp.cos(3.0 * theta)
+    delta1 = -first_order_amplitude(consts) * sin3
+    one_minus_cos3psi1 = (1.0 - cos3) - 3.0 * delta1 * sin3  # 2 sin²(3ψ1/2), first order in Δ1
+    v = consts["sinc0"] * (k * s0 * one_minus_cos3psi1 - 0.5 * H * delta1**2) / (consts["cos_g0"] + k * consts["sin_g0"])
+    q = s0 + 2.0 * half0 * c0 * v  # sin²(γ/2)/sin(γ0/2), first order in v
+    cos_gamma = consts["cos_g0"] - 2.0 * half0 * consts["sin_g0"] * v
+    z = -k / H * q * (sin3 - 3.0 * delta1 * cos3) / cos_gamma
+    return z * (1.0 + z * z / 6.0), v
 
-    def step(x):
-        g = scaled_residual(R, l, gamma0, theta, x)
-        return -_solve_2x2(scaled_jacobian(R, l, gamma0, theta, x), g)
+
+def _newton(R, l, gamma0, theta, rtol, max_steps):
+    """Newton iterations from the closed form, elementwise; returns (Δ, v) stacked, residual, steps, converged."""
+    consts = layout_constants(jnp, R, l, gamma0, theta)
+    scale = first_order_amplitude(consts)
+    tiny = jnp.finfo(theta.dtype).tiny
+    shape = jnp.broadcast_shapes(*(jnp.shape(a) for a in (R, l, gamma0, theta)))
+    guess = jnp.stack([jnp.broadcast_to(u, shape) for u in analytic_unknowns(jnp, consts, theta)])
 
     def cond(carry):
-        _, n, done = carry
-        return jnp.logical_and(n < max_steps, jnp.logical_not(done))
+        n, _, _, done = carry
+        return jnp.logical_and(n < max_steps, jnp.logical_not(jnp.all(done)))
 
     def body(carry):
-        x, n, _ = carry
-        dx = step(x)
-        x_new = x + dx
-        small = jnp.max(jnp.abs(dx)) <= rtol * (jnp.max(jnp.abs(x_new)) + scale) + tiny
-        return x_new, n + 1, small
+        # (Δ, v) travel stacked in one array: XLA then computes the step in one
+        # fusion instead of repeating the sines in one fusion per output.
+        n, x, steps, done = carry
+        d_delta, d_v = newton_step(*scaled_system(jnp, consts, x[0], x[1]))
+        new = jnp.stack([x[0] + d_delta, x[1] + d_v])
+        step = jnp.max(jnp.abs(new - x), axis=0)
+        small = step <= rtol * (jnp.max(jnp.abs(new), axis=0) + scale) + tiny
+        return (
+            n + 1,
+            jnp.where(done, x, new),
+            steps + jnp.logical_not(done).astype(jnp.int32),
+            jnp.logical_or(done, small),
+        )
 
-    x0 = jnp.zeros(2, dtype)
-    x, steps, done = jax.lax.while_loop(cond, body, (x0, jnp.int32(0), jnp.bool_(False)))
-    residual = scaled_residual(R, l, gamma0, theta, x)
-    converged = jnp.logical_and(done, jnp.all(jnp.isfinite(residual)))
-    # custom_root gives its aux outputs float tangents: carry the counters as floats.
-    return x, (residual, steps.astype(dtype), converged.astype(dtype))
+    start = (jnp.int32(0), guess, jnp.zeros(shape, jnp.int32), jnp.zeros(shape, bool))
+    _, x, steps, done = jax.lax.while_loop(cond, body, start)
+    residual = jnp.stack(scaled_system(jnp, consts, x[0], x[1])[0])
+    converged = jnp.logical_and(done, jnp.all(jnp.isfinite(residual), axis=0))
+    return x, residual, steps, converged
 
 
-def _tangent_solve(linear_map, rhs):
-    """Solve the linearised residual (the IFT step) for a 2-vector right-hand side."""
-    e0 = jnp.array([1.0, 0.0], rhs.dtype)
-    e1 = jnp.array([0.0, 1.0], rhs.dtype)
-    j = jnp.stack([linear_map(e0), linear_map(e1)], axis=1)
-    return _solve_2x2(j, rhs)
+def _implicit_solver(rtol, max_steps):
+    """Newton solve whose derivatives come from the implicit function theorem.
 
+    The JVP rule solves J·dx = −(∂g/∂(R, l, γ0, θ))·d(R, l, γ0, θ) with the
+    closed-form Jacobian J at the solution; the iterations are never
+    differentiated. The rule is itself differentiable, so derivatives of any
+    order (and reverse mode, by transposition) follow.
+    """
 
-def _solve_point(R, l, gamma0, theta, rtol, max_steps):
-    """Solve one θ; x = (Δ, v) differentiable by the implicit function theorem."""
-    residual = functools.partial(scaled_residual, R, l, gamma0, theta)
-    solve = lambda f, x0: _newton(R, l, gamma0, theta, rtol, max_steps)  # noqa: E731
-    x0 = jnp.zeros(2, jnp.result_type(theta))
-    x, (res, steps, converged) = jax.lax.custom_root(
-        residual, x0, solve, _tangent_solve, has_aux=True
-    )
-    return x, res, steps.astype(jnp.int32), converged > 0.5
+    @jax.custom_jvp
+    def solve(R, l, gamma0, theta):
+        return _newton(R, l, gamma0, theta, rtol, max_steps)
+
+    def solve_jvp(primals, tangents):
+        out = solve(*primals)
+        x = out[0]
+        # Only the inputs being differentiated enter the JVP (the others carry symbolic zeros).
+        active = [i for i, t in enumerate(tangents) if not isinstance(t, SymbolicZero)]
+
+        def system_at_solution(*moving):
+            args = list(primals)
+            for i, value in zip(active, moving):
+                args[i] = value
+            return scaled_system(jnp, layout_constants(jnp, *args), x[0], x[1])
+
+        (_, jacobian), (dg, _) = jax.jvp(
+            system_at_solution, tuple(primals[i] for i in active), tuple(tangents[i] for i in active)
+        )
+        dx = jnp.stack(newton_step(dg, jacobian))
+        no_tangent = [np.zeros(a.shape, jax.dtypes.float0) for a in out[2:]]
+        return out, (jnp.broadcast_to(dx, x.shape), jnp.zeros_like(out[1]), *no_tangent)
+
+    solve.defjvp(solve_jvp, symbolic_zeros=True)
+    return solve
 
 
 @pytree_dataclass
@@ -220,28 +279,61 @@ def solve_halfshaft(layout, theta, *, rtol=None, max_steps=DEFAULT_MAX_STEPS):
     theorem, not from the iterations. Works in float32 and float64: the
     working dtype is that of ``theta`` and the layout combined.
     """
-    dtype = jnp.result_type(layout.R, layout.l, layout.gamma0, theta, 0.0)
-    if not jnp.issubdtype(dtype, jnp.floating):
-        dtype = jnp.result_type(float)
-    R, l, gamma0, theta = (
-        jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0, theta)
-    )
+    R, l, gamma0, theta = _working_arrays(layout, theta)
     if rtol is None:
-        rtol = default_rtol(dtype)
-    solve = functools.partial(_solve_point, rtol=rtol, max_steps=max_steps)
-    x, residual, steps, converged = jnp.vectorize(solve, signature="(),(),(),()->(2),(2),(),()")(
-        R, l, gamma0, theta
-    )
-    delta = x[..., 0]
-    delta_gamma = gamma0 * x[..., 1]
-    theta = jnp.broadcast_to(theta, delta.shape)
+        rtol = default_rtol(theta.dtype)
+    x, residual, steps, converged = _implicit_solver(rtol, max_steps)(R, l, gamma0, theta)
+    delta, delta_gamma = x[0], gamma0 * x[1]
+    theta, gamma0 = jnp.broadcast_to(theta, delta.shape), jnp.broadcast_to(gamma0, delta.shape)
     return HalfshaftSolution(
         theta=theta,
         psi=theta - delta,
         gamma=gamma0 + delta_gamma,
         delta=delta,
         delta_gamma=delta_gamma,
-        residual=residual,
+        residual=jnp.moveaxis(residual, 0, -1),
         converged=converged,
         iterations=steps,
+    )
+
+
+@jax.jit
+def analytic_halfshaft(layout, theta):
+    """Closed-form approximation of ψ(θ), γ(θ): the seed's first order plus the γ ripple.
+
+    No iteration; θ enters only through sin 3θ and cos 3θ. With A = e(γ0)/|h|:
+
+    - first order (§2.11): γ ≈ γ0 and Δ1 = −A sin 3θ (asin dropped: A ≤ 0.05);
+    - γ ripple: 2.9.2 − 2.9.3 linearised in γ − γ0 at ψ1 = θ − Δ1,
+
+          γ − γ0 ≈ [2R sin²(γ0/2) sin²(3ψ1/2) + 2h sin²(Δ1/2)] / (l cos γ0 + (R/2) sin γ0),
+
+      ≈ (e/l)(1 − cos 3θ) to first order (sin²(3ψ1/2) and sin 3ψ1 are
+      expanded to first order in Δ1);
+    - Δ from 2.9.1 with that γ, e(γ) linearised in γ − γ0, and asin to third order.
+
+    Written in the scaled unknowns of :func:`scaled_residual`, so it is regular
+    at γ0 = 0. Over R 18–42 mm, l 300–800 mm, γ0 5–25° it gives delta_pp within
+    0.02 %, irregularity within 0.3 % and gamma_pp within 6 % of the converged
+    solve (the first order alone misses the irregularity by 2.5 %), at a small
+    fraction of its cost.
+
+    Returns a :class:`HalfshaftSolution` with ``iterations = 0``,
+    ``converged = True`` (nothing is solved) and ``residual`` the closed
+    form's residual in the scaled pair — its truncation error.
+    """
+    R, l, gamma0, theta = _working_arrays(layout, theta)
+    delta, v = analytic_unknowns(jnp, layout_constants(jnp, R, l, gamma0, theta), theta)
+    x = jnp.stack([delta, v], axis=-1)
+    delta_gamma = gamma0 * v
+    theta, gamma0 = jnp.broadcast_to(theta, delta.shape), jnp.broadcast_to(gamma0, delta.shape)
+    return HalfshaftSolution(
+        theta=theta,
+        psi=theta - delta,
+        gamma=gamma0 + delta_gamma,
+        delta=delta,
+        delta_gamma=delta_gamma,
+        residual=jax.lax.stop_gradient(scaled_residual(R, l, gamma0, theta, x)),
+        converged=jnp.ones(delta.shape, bool),
+        iterations=jnp.zeros(delta.shape, jnp.int32),
     )

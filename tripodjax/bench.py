@@ -1,0 +1,258 @@
+"""``python -m tripodjax.bench``: throughput and accuracy of the fidelity levels, side by side.
+
+Measures, in one process on the current machine, each fidelity level and
+dtype of :func:`tripodjax.sweep` against two peers solving the same equations
+on the same grid (one period of ``n_theta`` angles per layout):
+
+- a vectorised NumPy Newton of the scaled residual pair (same closed-form
+  Jacobian, same tolerance, dψ/dθ by the implicit function theorem);
+- a per-point ``scipy.optimize.fsolve`` loop on the printed pair, the seed's
+  own workflow, on a subsample (SciPy is a development dependency).
+
+It prints points/s (layouts × angles solved per second), the ratios to the
+peers, the cost of a gradient relative to the forward pass, and the error of
+delta_pp, irregularity and gamma_pp against converged float64; and writes the
+figures as JSON. Absolute times do not transfer between machines; the ratios
+measured in one run do.
+"""
+
+import argparse
+import json
+import os
+import platform
+import resource
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+COMPARED = ("delta_pp", "irregularity", "gamma_pp")
+
+
+def random_layouts(n, seed=0):
+    """Layouts drawn uniformly over R 18–42 mm, l 300–800 mm, γ0 5–25° (the seed's design range)."""
+    rng = np.random.default_rng(seed)
+    return rng.uniform(18, 42, n), rng.uniform(300, 800, n), np.radians(rng.uniform(5, 25, n))
+
+
+# --------------------------------------------------------------------------- NumPy peer
+
+
+def numpy_newton_metrics(R, l, gamma0, n_theta, rtol=32 * np.finfo(float).eps, max_steps=24):
+    """delta_pp, irregularity, gamma_pp by a vectorised NumPy Newton of the same scaled pair.
+
+    The residual and closed-form Jacobian are the library's own
+    (:func:`~tripodjax.halfshaft.scaled_system` with NumPy as the array
+    module), with the same start, tolerance and implicit dψ/dθ: the peer
+    differs only in running on NumPy.
+    """
+    from tripodjax.halfshaft import analytic_unknowns, first_order_amplitude, layout_constants, newton_step, scaled_system
+
+    n_period = n_theta // 3
+    theta = np.arange(n_period) * (2 * np.pi / 3 / n_period)
+    R, l, g0 = (np.asarray(a, float)[:, None] for a in (R, l, gamma0))
+    theta = np.broadcast_to(theta, (R.shape[0], n_period))
+    consts = layout_constants(np, R, l, g0, theta)
+    scale = first_order_amplitude(consts)
+    delta, v = analytic_unknowns(np, consts, theta)
+    for _ in range(max_steps):
+        d_delta, d_v = newton_step(*scaled_system(np, consts, delta, v))
+        delta, v = delta + d_delta, v + d_v
+        if np.all(np.maximum(np.abs(d_delta), np.abs(d_v)) <= rtol * (np.maximum(np.abs(delta), np.abs(v)) + scale)):
+            break
+    # dψ/dθ = 1 − dΔ/dθ by the implicit function theorem, J·d(Δ, v)/dθ = −∂g/∂θ. g depends on θ
+    # only through 3ψ = 3(θ − Δ), so −∂g/∂θ is the Δ-column of J less its direct Δ terms
+    # (−H cos Δ in j11, H sin Δ in j21); newton_step(b, J) = −J⁻¹b then gives −dΔ/dθ.
+    _, jacobian = scaled_system(np, consts, delta, v)
+    (j11, _), (j21, _) = jacobian
+    H = consts["H"]
+    minus_d_delta = newton_step((j11 + H * np.cos(delta), j21 - H * np.sin(delta)), jacobian)[0]
+    return {
+        "delta_pp": np.ptp(delta, axis=1),
+        "irregularity": np.ptp(1 + minus_d_delta, axis=1),
+        "gamma_pp": np.ptp(g0 * v, axis=1),
+    }
+
+
+# --------------------------------------------------------------------------- fsolve peer
+
+
+def _printed_pair(x, theta, R, l, gamma0):
+    psi, gamma = x
+    h = -l * np.sin(gamma0) - 0.5 * R * (1 - np.cos(gamma0))
+    e = 0.5 * R * (1 - np.cos(gamma)) / np.cos(gamma)
+    return [h * np.sin(theta - psi) - e * np.sin(3 * psi), h * np.cos(theta - psi) + l * np.sin(gamma) + e * np.cos(gamma) * np.cos(3 * psi)]
+
+
+def fsolve_metrics(R, l, gamma0, n_theta):
+    """The seed's workflow: fsolve per angle on the printed pair, dψ/dθ by central differences."""
+    import warnings
+
+    from scipy.optimize import fsolve
+
+    n_period = n_theta // 3
+    theta = np.arange(n_period) * (2 * np.pi / 3 / n_period)
+    out = {name: [] for name in COMPARED}
+    step = 1e-6
+    warnings.filterwarnings("ignore", "The iteration is not making good progress", RuntimeWarning)
+    for Ri, li, gi in zip(R, l, gamma0):
+        psi, gamma, slope = [], [], []
+        for t in theta:
+            x = fsolve(_printed_pair, [t, gi], args=(t, Ri, li, gi), xtol=1e-13)
+            xp = fsolve(_printed_pair, x, args=(t + step, Ri, li, gi), xtol=1e-13)
+            xm = fsolve(_printed_pair, x, args=(t - step, Ri, li, gi), xtol=1e-13)
+            psi.append(x[0])
+            gamma.append(x[1])
+            slope.append((xp[0] - xm[0]) / (2 * step))
+        out["delta_pp"].append(np.ptp(theta - np.array(psi)))
+        out["irregularity"].append(np.ptp(slope))
+        out["gamma_pp"].append(np.ptp(gamma))
+    return {name: np.array(values) for name, values in out.items()}
+
+
+# --------------------------------------------------------------------------- measurements
+
+
+def _best_time(f, repeats):
+    f()  # warm-up: compilation
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        f()
+        times.append(time.perf_counter() - start)
+    return min(times)
+
+
+def _relative_error(values, reference):
+    return float(np.max(np.abs(values / reference - 1)))
+
+
+def run(n_layouts=20000, n_theta=360, fsolve_layouts=20, repeats=3, gradient_layouts=2000):
+    import jax
+    import jax.numpy as jnp
+
+    import tripodjax as tj
+
+    R, l, g0 = random_layouts(n_layouts)
+    points = n_layouts * (n_theta // 3)
+    results = {"machine": platform.machine(), "processor": platform.processor(), "cpu_count": os.cpu_count(),
+               "jax": jax.__version__, "backend": jax.default_backend(), "devices": len(jax.devices()),
+               "n_layouts": n_layouts, "n_theta": n_theta, "angles_solved_per_layout": n_theta // 3, "variants": {}}
+
+    def layouts(dtype, R=R, l=l, g0=g0):
+        return tj.Layout(*(np.asarray(a, dtype) for a in (R, l, g0)))
+
+    reference = tj.sweep(layouts(np.float64), n_theta=n_theta, outputs=COMPARED)
+    for fidelity in ("newton", "analytic"):
+        for dtype in (np.float64, np.float32):
+            batch = layouts(dtype)
+            holder = {}
+
+            def call():
+                holder["r"] = tj.sweep(batch, n_theta=n_theta, fidelity=fidelity, outputs=COMPARED)
+
+            seconds = _best_time(call, repeats)
+            name = f"{fidelity}/{np.dtype(dtype).name}"
+            results["variants"][name] = {
+                "seconds": seconds,
+                "points_per_s": points / seconds,
+                "errors_vs_newton_float64": {k: _relative_error(holder["r"][k].astype(float), reference[k]) for k in COMPARED},
+            }
+
+    holder = {}
+    numpy_seconds = _best_time(lambda: holder.update(r=numpy_newton_metrics(R, l, g0, n_theta)), repeats)
+    results["numpy_newton"] = {
+        "seconds": numpy_seconds,
+        "points_per_s": points / numpy_seconds,
+        "errors_vs_newton_float64": {k: _relative_error(holder["r"][k], reference[k]) for k in COMPARED},
+    }
+    sub = slice(0, fsolve_layouts)
+    start = time.perf_counter()
+    fs = fsolve_metrics(R[sub], l[sub], g0[sub], n_theta)
+    fsolve_seconds = time.perf_counter() - start
+    fsolve_points = fsolve_layouts * (n_theta // 3)
+    results["fsolve_loop"] = {
+        "layouts": fsolve_layouts,
+        "seconds": fsolve_seconds,
+        "points_per_s": fsolve_points / fsolve_seconds,
+        "errors_vs_newton_float64": {k: _relative_error(fs[k], reference[k][sub]) for k in COMPARED},
+    }
+    results["fsolve_loop"]["max_abs_irregularity_difference"] = float(np.max(np.abs(fs["irregularity"] - reference["irregularity"][sub])))
+
+    # Gradient of the batch's summed irregularity w.r.t. every layout field, against the forward pass.
+    batch = layouts(np.float64, R[:gradient_layouts], l[:gradient_layouts], g0[:gradient_layouts])
+    irregularity = lambda lay: tj.kinematic_metrics(lay, n_theta=n_theta).irregularity  # noqa: E731
+    forward = jax.jit(lambda b: jnp.sum(jax.vmap(irregularity)(b)))
+    gradient = jax.jit(jax.grad(lambda b: jnp.sum(jax.vmap(irregularity)(b))))
+    t_forward = _best_time(lambda: jax.block_until_ready(forward(batch)), repeats)
+    t_gradient = _best_time(lambda: jax.block_until_ready(gradient(batch)), repeats)
+    results["gradient_to_forward"] = {"layouts": gradient_layouts, "forward_s": t_forward, "gradient_s": t_gradient, "ratio": t_gradient / t_forward}
+    return results
+
+
+def memory_of_sweep(n_layouts, n_theta=360):
+    """Peak resident memory [MB] a fresh process adds by sweeping n_layouts (newton, float64)."""
+    code = (
+        "import resource, jax, numpy as np; jax.config.update('jax_enable_x64', True);"
+        "import tripodjax as tj; from tripodjax.bench import random_layouts;"
+        f"R, l, g = random_layouts({n_layouts}); lay = tj.Layout(R, l, g);"
+        "small = tj.Layout(R[:8], l[:8], g[:8]); tj.sweep(small);"
+        "before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss;"
+        f"tj.sweep(lay, n_theta={n_theta});"
+        "after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss;"
+        "print(before / 1024, after / 1024)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    before, after = float(out[0]), float(out[1])
+    return {"layouts": n_layouts, "peak_rss_before_mb": before, "peak_rss_after_mb": after, "added_mb": after - before}
+
+
+def report(results):
+    lines = [
+        f"tripodjax bench — {results['n_layouts']} layouts × {results['angles_solved_per_layout']} angles "
+        f"(one period of {results['n_theta']}), backend {results['backend']}, {results['cpu_count']} CPU cores",
+        f"{'variant':<22} {'points/s':>12} {'× NumPy':>9} {'× fsolve':>10} {'err delta_pp':>13} {'err Irr':>9} {'err gamma_pp':>13}",
+    ]
+    numpy_rate = results["numpy_newton"]["points_per_s"]
+    fsolve_rate = results["fsolve_loop"]["points_per_s"]
+    rows = list(results["variants"].items()) + [("numpy Newton (peer)", results["numpy_newton"]), (f"fsolve loop ({results['fsolve_loop']['layouts']} layouts)", results["fsolve_loop"])]
+    for name, r in rows:
+        e = r["errors_vs_newton_float64"]
+        lines.append(
+            f"{name:<22} {r['points_per_s']:>12.3g} {r['points_per_s'] / numpy_rate:>9.2f} {r['points_per_s'] / fsolve_rate:>10.1f} "
+            f"{e['delta_pp']:>13.1e} {e['irregularity']:>9.1e} {e['gamma_pp']:>13.1e}"
+        )
+    g = results["gradient_to_forward"]
+    lines.append(f"gradient (R, l, γ0) / forward cost, newton float64, {g['layouts']} layouts: {g['ratio']:.2f}")
+    if "memory" in results:
+        m = results["memory"]
+        lines.append(f"a {m['layouts']}-layout sweep added {m['added_mb']:.0f} MB to the peak resident memory")
+    lines.append("errors: largest relative difference from newton/float64 over the layouts")
+    return "\n".join(lines)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="python -m tripodjax.bench", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--layouts", type=int, default=20000, help="layouts per variant (default 20000)")
+    parser.add_argument("--n-theta", type=int, default=360, help="angles per revolution (default 360)")
+    parser.add_argument("--fsolve-layouts", type=int, default=20, help="layouts in the fsolve subsample (default 20)")
+    parser.add_argument("--repeats", type=int, default=3, help="timed repeats, best kept (default 3)")
+    parser.add_argument("--memory", type=int, default=0, metavar="N", help="also measure the peak memory a sweep of N layouts adds")
+    parser.add_argument("--json", default="tripodjax-bench.json", help="where to write the figures (default tripodjax-bench.json)")
+    args = parser.parse_args(argv)
+    import jax
+
+    jax.config.update("jax_enable_x64", True)  # the command's own choice: float64 variants and reference
+    results = run(args.layouts, args.n_theta, args.fsolve_layouts, args.repeats)
+    if args.memory:
+        results["memory"] = memory_of_sweep(args.memory, args.n_theta)
+    print(report(results))
+    with open(args.json, "w") as f:
+        json.dump(results, f, indent=2)
+    print(f"figures written to {args.json}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
