@@ -1,5 +1,24 @@
 """The joint-design problem and its optimiser (``optimize-joint``).
 
-Placeholder package: the design problem, the optax-driven optimiser and the
-``optimize-joint`` command arrive with the optimiser issue.
+- :func:`load_spec` — the design specification (TOML, checked; an embedded default).
+- :func:`evaluate` — objective and constraint margins of one design (jit-compiled).
+- :func:`solve` — the proposed joint size, by an augmented Lagrangian on optax's L-BFGS.
+- :func:`solve_family`, :func:`pareto_front` — many scenarios at once through vmap.
 """
+
+from optimize.problem import evaluate
+from optimize.solver import Result, pareto_front, solve, solve_family
+from optimize.spec import DEFAULT_SPEC_TOML, Spec, SpecError, load_spec, parse_spec
+
+__all__ = [
+    "DEFAULT_SPEC_TOML",
+    "Result",
+    "Spec",
+    "SpecError",
+    "evaluate",
+    "load_spec",
+    "pareto_front",
+    "parse_spec",
+    "solve",
+    "solve_family",
+]
