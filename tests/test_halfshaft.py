@@ -1,6 +1,5 @@
 """The halfshaft solve (seed §2.9) against an independent fsolve, identities and limits."""
 
-import math
 
 import jax
 import jax.numpy as jnp
