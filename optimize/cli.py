@@ -22,7 +22,10 @@ def _parse(argv):
             "transmission irregularity, the generated axial force (GAF) and the joint size low. "
             "Writes DIR/report.json and PNG plots (convergence, constraint margins, Pareto front)."
         ),
-        epilog="Exit status: 0 converged; 1 did not converge (the report says so); 2 bad specification or arguments.",
+        epilog=(
+            "Exit status: 0 converged; 1 did not converge (the report says so); 2 bad specification or arguments. "
+            "Compiled code is cached in $TRIPODJAX_CACHE_DIR (default ~/.cache/tripodjax/jax), which makes later runs faster."
+        ),
     )
     parser.add_argument("spec", nargs="?", help="TOML design specification (default: the embedded one, `optimize.DEFAULT_SPEC_TOML`)")
     parser.add_argument("--out", required=True, metavar="DIR", help="directory for report.json and the plots")
@@ -38,6 +41,11 @@ def main(argv=None):
     import jax
 
     jax.config.update("jax_enable_x64", True)  # the command's own choice
+    # Compiling the optimiser takes most of a first run; keep the executables for the next one.
+    cache = os.environ.get("TRIPODJAX_CACHE_DIR") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "tripodjax", "jax"
+    )
+    jax.config.update("jax_compilation_cache_dir", cache)
     from optimize import report
     from optimize.solver import pareto_front
     from optimize.spec import SpecError, load_spec

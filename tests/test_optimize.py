@@ -5,6 +5,7 @@ import math
 import os
 import subprocess
 import sys
+import tempfile
 
 import jax
 import jax.numpy as jnp
@@ -20,7 +21,9 @@ SPEC = optimize.load_spec()
 
 def run_cli(*args, cwd=None):
     command = [sys.executable, "-c", "import sys; from optimize.cli import main; sys.exit(main())", *args]
-    return subprocess.run(command, capture_output=True, text=True, timeout=900, cwd=cwd)
+    # The command caches compiled code; keep the tests' cache out of the user's home.
+    env = dict(os.environ, TRIPODJAX_CACHE_DIR=os.path.join(tempfile.gettempdir(), "tripodjax-test-cache"))
+    return subprocess.run(command, capture_output=True, text=True, timeout=900, cwd=cwd, env=env)
 
 
 def test_default_spec_is_grounded_in_the_seed():
