@@ -64,6 +64,9 @@ def _figure_margins(result):
     names = list(result.constraints)
     margins = [result.constraints[n]["margin"] for n in names]
     ax.barh(names, margins, color=["C2" if m >= 0 else "C3" for m in margins])
+    for y, m in enumerate(margins):
+        ax.annotate(f"{m:+.2e}" + (" (active)" if abs(m) < 1e-3 else ""), (max(m, 0), y), xytext=(4, 0),
+                    textcoords="offset points", va="center", fontsize=8)
     ax.axvline(0, color="k", lw=0.8)
     ax.set(title="constraint margins at the proposed design (≥ 0: satisfied)", xlabel="margin ln(value/limit) [–]")
     ax.grid(alpha=0.3, axis="x")
@@ -77,8 +80,11 @@ def _figure_pareto(result, pareto):
         size = [r.quantities["outer_diameter"] for _, r in pareto]
         gaf = [r.quantities["gaf_rms"] for _, r in pareto]
         ax.plot(size, gaf, "o-", label="Pareto front (GAF weight swept)")
-        for (w, r), s, g in zip(pareto, size, gaf):
-            ax.annotate(f"w_gaf={w:g}", (s, g), textcoords="offset points", xytext=(5, 5), fontsize=8)
+        labels = {}  # weights that land on the same design share one label
+        for (w, _), s, g in zip(pareto, size, gaf):
+            labels.setdefault((round(s, 3), round(g, 1)), []).append(f"{w:g}")
+        for (s, g), ws in labels.items():
+            ax.annotate("w_gaf = " + ", ".join(ws), (s, g), textcoords="offset points", xytext=(5, 5), fontsize=8)
     ax.plot([result.quantities["outer_diameter"]], [result.quantities["gaf_rms"]], "r*", ms=14, label="proposed design")
     ax.set(title="GAF against joint size", xlabel="outer-diameter proxy 2R + d [mm]", ylabel="GAF RMS [N]")
     ax.grid(alpha=0.3)
