@@ -68,7 +68,12 @@ def main(argv=None):
         f"optimize-joint: R = {d['R']:.3f} mm, d_roller = {d['d_roller']:.3f} mm, objective {main_result.objective:.5f}, "
         f"KKT residual {main_result.kkt_residual:.2e} ({status}); report in {os.path.join(args.out, 'report.json')}"
     )
-    return EXIT_OK if main_result.converged else EXIT_NOT_CONVERGED
+    if not main_result.converged:
+        violated = [f"{name} (margin {c['margin']:+.3g})" for name, c in main_result.constraints.items() if c["margin"] < 0]
+        reason = "violated: " + ", ".join(violated) if violated else "the KKT residual is above solver.tolerance"
+        print(f"optimize-joint: no converged design within solver.max_outer iterations; {reason}", file=sys.stderr)
+        return EXIT_NOT_CONVERGED
+    return EXIT_OK
 
 
 if __name__ == "__main__":

@@ -136,6 +136,16 @@ def test_cli_malformed_spec_exits_2_with_one_line_and_no_report(tmp_path):
     assert bad_args.returncode == 2 and len(bad_args.stderr.strip().splitlines()) == 1
 
 
+def test_cli_infeasible_spec_exits_1_with_a_complete_report(tmp_path):
+    spec = tmp_path / "small.toml"
+    spec.write_text("[bounds]\nR = [15.0, 17.0]\nd_roller = [20.0, 22.0]\n[solver]\nmax_outer = 3\n")
+    result = run_cli(str(spec), "--out", str(tmp_path / "out"), "--progress", "off")
+    assert result.returncode == 1, result.stderr
+    assert "violated: life" in result.stderr
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert report["converged"] is False and report["constraints"]["life"]["margin"] < 0
+
+
 def test_cli_help():
     result = run_cli("--help")
     assert result.returncode == 0 and "--out DIR" in result.stdout and "Exit status" in result.stdout
