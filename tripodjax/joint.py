@@ -19,7 +19,7 @@ def roller_angles(psi):
 
 
 def direction_cosines(gamma, tau):
-    """Direction-cosine matrix between pot XYZ and spider X'Y'Z' (2.3.5).
+    """Direction-cosine matrix between pot XYZ and spider X'Y'Z' (2.3.5); γ, τ in rad.
 
     Rows are X, Y, Z; columns are X', Y', Z' (entries l_j, m_j, n_j), so the
     last column is the spider axis Z' in the pot frame. Shape ``(..., 3, 3)``.
