@@ -27,9 +27,20 @@ def _parse(argv):
             "Compiled code is cached in $TRIPODJAX_CACHE_DIR (default ~/.cache/tripodjax/jax), which makes later runs faster."
         ),
     )
-    parser.add_argument("spec", nargs="?", help="TOML design specification (default: the embedded one, `optimize.DEFAULT_SPEC_TOML`)")
-    parser.add_argument("--out", required=True, metavar="DIR", help="directory for report.json and the plots")
-    parser.add_argument("--progress", choices=("auto", "on", "off"), default="auto", help="progress bar on standard error (default: on a terminal)")
+    parser.add_argument(
+        "spec",
+        nargs="?",
+        help="TOML design specification (default: the embedded one, `optimize.DEFAULT_SPEC_TOML`)",
+    )
+    parser.add_argument(
+        "--out", required=True, metavar="DIR", help="directory for report.json and the plots"
+    )
+    parser.add_argument(
+        "--progress",
+        choices=("auto", "on", "off"),
+        default="auto",
+        help="progress bar on standard error (default: on a terminal)",
+    )
     return parser.parse_args(argv)
 
 
@@ -61,7 +72,13 @@ def main(argv=None):
     # One batched solve gives the proposed design (the spec's own weight) and the Pareto front.
     results = pareto_front(spec, weights, progress=progress)
     main_result = results[PARETO_FACTORS.index(1.0)] if weight > 0 else results[0]
-    report.write(args.out, main_result, spec, list(zip(weights, results)), source=args.spec or "default")
+    report.write(
+        args.out,
+        main_result,
+        spec,
+        list(zip(weights, results, strict=False)),
+        source=args.spec or "default",
+    )
     d = main_result.design
     status = "converged" if main_result.converged else "NOT converged"
     print(
@@ -69,9 +86,20 @@ def main(argv=None):
         f"KKT residual {main_result.kkt_residual:.2e} ({status}); report in {os.path.join(args.out, 'report.json')}"
     )
     if not main_result.converged:
-        violated = [f"{name} (margin {c['margin']:+.3g})" for name, c in main_result.constraints.items() if c["margin"] < 0]
-        reason = "violated: " + ", ".join(violated) if violated else "the KKT residual is above solver.tolerance"
-        print(f"optimize-joint: no converged design within solver.max_outer iterations; {reason}", file=sys.stderr)
+        violated = [
+            f"{name} (margin {c['margin']:+.3g})"
+            for name, c in main_result.constraints.items()
+            if c["margin"] < 0
+        ]
+        reason = (
+            "violated: " + ", ".join(violated)
+            if violated
+            else "the KKT residual is above solver.tolerance"
+        )
+        print(
+            f"optimize-joint: no converged design within solver.max_outer iterations; {reason}",
+            file=sys.stderr,
+        )
         return EXIT_NOT_CONVERGED
     return EXIT_OK
 

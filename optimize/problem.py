@@ -63,12 +63,46 @@ def quantities(spec, x, params):
     layout = Layout(R, params["l"], params["gamma0"])
     sol, rates = revolution(layout, spec["solver"]["n_theta"], "newton", with_rates=True)
     friction_params = GREASES[fr["grease"]].replace(lam=fr["lam"])
-    gaf = friction.gaf_from_revolution(layout, sol, rates, loads["gaf_torque"], friction_params, fr["gaf_model"], friction.DEFAULT_STROKE_WIDTH)
-    caps = hertz.capacities(d, R, conformity=h["conformity"], P_s=h["P_s"], P_d=h["P_d"], P_sd=h["P_sd"], C_s=h["C_s"], n_rollers=h["n_rollers"])
+    gaf = friction.gaf_from_revolution(
+        layout,
+        sol,
+        rates,
+        loads["gaf_torque"],
+        friction_params,
+        fr["gaf_model"],
+        friction.DEFAULT_STROKE_WIDTH,
+    )
+    caps = hertz.capacities(
+        d,
+        R,
+        conformity=h["conformity"],
+        P_s=h["P_s"],
+        P_d=h["P_d"],
+        P_sd=h["P_sd"],
+        C_s=h["C_s"],
+        n_rollers=h["n_rollers"],
+    )
     life_spec = spec["life"]
-    spectrum = hertz.LoadSpectrum(**{k: jnp.asarray(life_spec["spectrum"][k]) for k in ("torque", "speed", "vehicle_speed", "share")})
-    conditions = hertz.WorkingConditions(angle=jnp.asarray(life_spec["conditions"]["angle_rad"]), share=jnp.asarray(life_spec["conditions"]["share"]))
-    life = hertz.joint_life(d, R, spectrum, conditions, conformity=h["conformity"], P_d=h["P_d"], C_s=h["C_s"], n_rollers=h["n_rollers"])
+    spectrum = hertz.LoadSpectrum(
+        **{
+            k: jnp.asarray(life_spec["spectrum"][k])
+            for k in ("torque", "speed", "vehicle_speed", "share")
+        }
+    )
+    conditions = hertz.WorkingConditions(
+        angle=jnp.asarray(life_spec["conditions"]["angle_rad"]),
+        share=jnp.asarray(life_spec["conditions"]["share"]),
+    )
+    life = hertz.joint_life(
+        d,
+        R,
+        spectrum,
+        conditions,
+        conformity=h["conformity"],
+        P_d=h["P_d"],
+        C_s=h["C_s"],
+        n_rollers=h["n_rollers"],
+    )
     return {
         "irregularity": jnp.max(rates.psi) - jnp.min(rates.psi),
         "gaf_rms": gaf.rms,
@@ -113,7 +147,12 @@ def limits(spec):
         "R_over_d_max": ("R_over_d", hi, "≤", "–"),
     }
     if "max_outer_diameter" in spec["constraints"]:
-        out["outer_diameter"] = ("outer_diameter", spec["constraints"]["max_outer_diameter"], "≤", "mm")
+        out["outer_diameter"] = (
+            "outer_diameter",
+            spec["constraints"]["max_outer_diameter"],
+            "≤",
+            "mm",
+        )
     return out
 
 
@@ -150,7 +189,9 @@ def evaluate(spec, design):
     """
     unknown = set(design) - {"R", "d_roller", "l", "gamma0_deg"}
     if unknown or not {"R", "d_roller"} <= set(design):
-        raise ValueError(f"design keys {sorted(design)} not allowed: need R and d_roller [mm], optionally l [mm] and gamma0_deg")
+        raise ValueError(
+            f"design keys {sorted(design)} not allowed: need R and d_roller [mm], optionally l [mm] and gamma0_deg"
+        )
     overrides = {}
     if "l" in design:
         overrides["l"] = float(design["l"])
@@ -162,7 +203,7 @@ def evaluate(spec, design):
         objective, margins = float(objective), [float(m) for m in margins]
     lower, upper = bounds(spec)
     span = upper - lower
-    result = dict(zip(constraint_names(spec), margins))
+    result = dict(zip(constraint_names(spec), margins, strict=False))
     for i, name in enumerate(VARIABLES):
         result[f"{name}_lower_bound"] = float((x[i] - lower[i]) / span[i])
         result[f"{name}_upper_bound"] = float((upper[i] - x[i]) / span[i])

@@ -18,8 +18,13 @@ def versions():
 
     import tripodjax
 
-    return {"tripodjax": tripodjax.__version__, "jax": jax.__version__, "optax": optax.__version__,
-            "numpy": numpy.__version__, "python": platform.python_version()}
+    return {
+        "tripodjax": tripodjax.__version__,
+        "jax": jax.__version__,
+        "optax": optax.__version__,
+        "numpy": numpy.__version__,
+        "python": platform.python_version(),
+    }
 
 
 def report_dict(result, spec, pareto=(), source="default"):
@@ -36,8 +41,15 @@ def report_dict(result, spec, pareto=(), source="default"):
         "history": result.history,
         "starts": result.starts,
         "pareto_front": [
-            {"w_gaf": w, "R_mm": r.design["R"], "d_roller_mm": r.design["d_roller"], "gaf_rms_N": r.quantities["gaf_rms"],
-             "outer_diameter_mm": r.quantities["outer_diameter"], "irregularity": r.quantities["irregularity"], "converged": r.converged}
+            {
+                "w_gaf": w,
+                "R_mm": r.design["R"],
+                "d_roller_mm": r.design["d_roller"],
+                "gaf_rms_N": r.quantities["gaf_rms"],
+                "outer_diameter_mm": r.quantities["outer_diameter"],
+                "irregularity": r.quantities["irregularity"],
+                "converged": r.converged,
+            }
             for w, r in pareto
         ],
         "spec_source": source,
@@ -50,7 +62,9 @@ def _figure_convergence(result):
     fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(11, 4))
     it = range(1, len(result.history["objective"]) + 1)
     ax0.plot(it, result.history["objective"], "o-")
-    ax0.set(title="objective of the chosen start", xlabel="outer iteration [–]", ylabel="objective [–]")
+    ax0.set(
+        title="objective of the chosen start", xlabel="outer iteration [–]", ylabel="objective [–]"
+    )
     ax1.semilogy(it, result.history["kkt_residual"], "o-")
     ax1.set(title="KKT residual", xlabel="outer iteration [–]", ylabel="KKT residual [–]")
     for ax in (ax0, ax1):
@@ -65,10 +79,19 @@ def _figure_margins(result):
     margins = [result.constraints[n]["margin"] for n in names]
     ax.barh(names, margins, color=["C2" if m >= 0 else "C3" for m in margins])
     for y, m in enumerate(margins):
-        ax.annotate(f"{m:+.2e}" + (" (active)" if abs(m) < 1e-3 else ""), (max(m, 0), y), xytext=(4, 0),
-                    textcoords="offset points", va="center", fontsize=8)
+        ax.annotate(
+            f"{m:+.2e}" + (" (active)" if abs(m) < 1e-3 else ""),
+            (max(m, 0), y),
+            xytext=(4, 0),
+            textcoords="offset points",
+            va="center",
+            fontsize=8,
+        )
     ax.axvline(0, color="k", lw=0.8)
-    ax.set(title="constraint margins at the proposed design (≥ 0: satisfied)", xlabel="margin ln(value/limit) [–]")
+    ax.set(
+        title="constraint margins at the proposed design (≥ 0: satisfied)",
+        xlabel="margin ln(value/limit) [–]",
+    )
     ax.grid(alpha=0.3, axis="x")
     fig.tight_layout()
     return fig
@@ -81,12 +104,28 @@ def _figure_pareto(result, pareto):
         gaf = [r.quantities["gaf_rms"] for _, r in pareto]
         ax.plot(size, gaf, "o-", label="Pareto front (GAF weight swept)")
         labels = {}  # weights that land on the same design share one label
-        for (w, _), s, g in zip(pareto, size, gaf):
+        for (w, _), s, g in zip(pareto, size, gaf, strict=False):
             labels.setdefault((round(s, 3), round(g, 1)), []).append(f"{w:g}")
         for (s, g), ws in labels.items():
-            ax.annotate("w_gaf = " + ", ".join(ws), (s, g), textcoords="offset points", xytext=(5, 5), fontsize=8)
-    ax.plot([result.quantities["outer_diameter"]], [result.quantities["gaf_rms"]], "r*", ms=14, label="proposed design")
-    ax.set(title="GAF against joint size", xlabel="outer-diameter proxy 2R + d [mm]", ylabel="GAF RMS [N]")
+            ax.annotate(
+                "w_gaf = " + ", ".join(ws),
+                (s, g),
+                textcoords="offset points",
+                xytext=(5, 5),
+                fontsize=8,
+            )
+    ax.plot(
+        [result.quantities["outer_diameter"]],
+        [result.quantities["gaf_rms"]],
+        "r*",
+        ms=14,
+        label="proposed design",
+    )
+    ax.set(
+        title="GAF against joint size",
+        xlabel="outer-diameter proxy 2R + d [mm]",
+        ylabel="GAF RMS [N]",
+    )
     ax.grid(alpha=0.3)
     ax.legend()
     fig.tight_layout()

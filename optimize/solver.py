@@ -29,13 +29,23 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from optimize.problem import VARIABLES, bounds, compiled, constraint_names, limits, objective_and_margins, scenario
+from optimize.problem import (
+    VARIABLES,
+    bounds,
+    compiled,
+    constraint_names,
+    limits,
+    objective_and_margins,
+    scenario,
+)
 
 RHO_START = 10.0
 RHO_GROWTH = 4.0
 RHO_MAX = 1e6
 BOUND_TOLERANCE = 1e-6  # a variable this close (relative to its bound width) counts as on the bound
-SAFETY = 10.0  # the solver asks for margins ≥ SAFETY · tolerance, so the design is strictly feasible
+SAFETY = (
+    10.0  # the solver asks for margins ≥ SAFETY · tolerance, so the design is strictly feasible
+)
 
 
 def start_points(spec):
@@ -81,7 +91,11 @@ def _outer_step(spec, z, lam, rho, params, lower, upper):
         c = c - offset
         return f + jnp.sum(jnp.maximum(0.0, lam - rho * c) ** 2 - lam**2) / (2.0 * rho)
 
-    opt = optax.lbfgs(linesearch=optax.scale_by_backtracking_linesearch(max_backtracking_steps=20, store_grad=True))
+    opt = optax.lbfgs(
+        linesearch=optax.scale_by_backtracking_linesearch(
+            max_backtracking_steps=20, store_grad=True
+        )
+    )
     value_and_grad = optax.value_and_grad_from_state(augmented)
 
     def inner(carry, _):
@@ -96,7 +110,9 @@ def _outer_step(spec, z, lam, rho, params, lower, upper):
     c = c - offset
     new_lam = jnp.maximum(0.0, lam - rho * c)
     violation = jnp.max(jnp.maximum(0.0, -c))
-    new_rho = jnp.where(violation > spec["solver"]["tolerance"], jnp.minimum(rho * RHO_GROWTH, RHO_MAX), rho)
+    new_rho = jnp.where(
+        violation > spec["solver"]["tolerance"], jnp.minimum(rho * RHO_GROWTH, RHO_MAX), rho
+    )
     kkt = _kkt(spec, x, new_lam, params, lower, upper, offset)
     return z, new_lam, new_rho, f, c, kkt
 
@@ -149,7 +165,9 @@ class _Progress:
     def update(self, i, kkt):
         if self.enabled:
             bar = "#" * int(30 * i / self.total)
-            sys.stderr.write(f"\roptimize [{bar:<30}] outer {i}/{self.total}, KKT {kkt:.2e}, {time.perf_counter() - self.start:.1f} s")
+            sys.stderr.write(
+                f"\roptimize [{bar:<30}] outer {i}/{self.total}, KKT {kkt:.2e}, {time.perf_counter() - self.start:.1f} s"
+            )
             sys.stderr.flush()
 
     def close(self):
@@ -180,9 +198,15 @@ def _run(spec, scenarios, progress):
             z, lam, rho, f, c, kkt = (np.asarray(a) for a in stepped)
         else:
             # A start that has met the KKT criterion stays where it is.
-            keep = lambda old, new: np.where(done.reshape(done.shape + (1,) * (np.ndim(new) - 2)), old, new)  # noqa: E731
-            z, lam, rho = (keep(np.asarray(o), np.asarray(n)) for o, n in zip(state, stepped[:3]))
-            f, c, kkt = (keep(o, np.asarray(n)) for o, n in zip((f, c, kkt), stepped[3:]))
+            keep = lambda old, new: np.where(
+                done.reshape(done.shape + (1,) * (np.ndim(new) - 2)), old, new
+            )  # noqa: E731
+            z, lam, rho = (
+                keep(np.asarray(o), np.asarray(n)) for o, n in zip(state, stepped[:3], strict=False)
+            )
+            f, c, kkt = (
+                keep(o, np.asarray(n)) for o, n in zip((f, c, kkt), stepped[3:], strict=False)
+            )
         done |= kkt <= tolerance
         best = _choose(f, c, kkt, tolerance)
         history["objective"].append(np.take_along_axis(f, best[:, None], 1)[:, 0])
@@ -218,12 +242,18 @@ def _results(spec, scenarios, outcome):
         objective, margins, q = evaluate(jnp.asarray(x[k, b]), params)
         quantities = {name: float(v) for name, v in q.items()}
         table = {}
-        for name, m in zip(names, np.asarray(margins)):
+        for name, m in zip(names, np.asarray(margins), strict=False):
             quantity, limit, sense, unit = limits(spec)[name]
-            table[name] = {"value": quantities[quantity], "limit": limit, "sense": sense, "unit": unit, "margin": float(m)}
+            table[name] = {
+                "value": quantities[quantity],
+                "limit": limit,
+                "sense": sense,
+                "unit": unit,
+                "margin": float(m),
+            }
         out.append(
             Result(
-                design={name: float(v) for name, v in zip(VARIABLES, x[k, b])},
+                design={name: float(v) for name, v in zip(VARIABLES, x[k, b], strict=False)},
                 objective=float(objective),
                 constraints=table,
                 kkt_residual=float(kkt[k, b]),
@@ -231,11 +261,15 @@ def _results(spec, scenarios, outcome):
                 quantities=quantities,
                 history={key: [float(v[k]) for v in values] for key, values in history.items()},
                 starts=[
-                    {"design": {n: float(v) for n, v in zip(VARIABLES, x[k, s])}, "objective": float(f[k, s]),
-                     "kkt_residual": float(kkt[k, s]), "feasible": bool(np.min(c[k, s]) >= -spec["solver"]["tolerance"])}
+                    {
+                        "design": {n: float(v) for n, v in zip(VARIABLES, x[k, s], strict=False)},
+                        "objective": float(f[k, s]),
+                        "kkt_residual": float(kkt[k, s]),
+                        "feasible": bool(np.min(c[k, s]) >= -spec["solver"]["tolerance"]),
+                    }
                     for s in range(x.shape[1])
                 ],
-                multipliers={name: float(v) for name, v in zip(names, lam[k, b])},
+                multipliers={name: float(v) for name, v in zip(names, lam[k, b], strict=False)},
             )
         )
     return out
@@ -264,7 +298,11 @@ def solve_family(spec, *, gamma0_deg=None, l=None, progress=None):
         raise ValueError("solve_family needs exactly one of gamma0_deg=[...] or l=[...]")
     with jax.enable_x64(True):
         base = scenario(spec)
-        values = np.radians(np.asarray(gamma0_deg, float)) if gamma0_deg is not None else np.asarray(l, float)
+        values = (
+            np.radians(np.asarray(gamma0_deg, float))
+            if gamma0_deg is not None
+            else np.asarray(l, float)
+        )
         name = "gamma0" if gamma0_deg is not None else "l"
         scenarios = {k: jnp.broadcast_to(v, values.shape) for k, v in base.items()}
         scenarios[name] = jnp.asarray(values)

@@ -120,7 +120,11 @@ def _get(table, path, kind=float):
             raise SpecError(f"{key} = {node!r} must be an integer")
         return node
     if kind is list:
-        if not isinstance(node, list) or not node or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in node):
+        if (
+            not isinstance(node, list)
+            or not node
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in node)
+        ):
             raise SpecError(f"{key} = {node!r} must be a non-empty list of numbers")
         return [float(v) for v in node]
     if kind is str:
@@ -171,58 +175,161 @@ def parse_spec(text, source="spec"):
         raise SpecError(f"{source} is not valid TOML: {error}") from None
     table = _merge(tomllib.loads(DEFAULT_SPEC_TOML), given)
     v = {}
-    v["layout"] = {"l": _get(table, ("layout", "l")), "gamma0_rad": math.radians(_get(table, ("layout", "gamma0_deg")))}
+    v["layout"] = {
+        "l": _get(table, ("layout", "l")),
+        "gamma0_rad": math.radians(_get(table, ("layout", "gamma0_deg"))),
+    }
     _require(v["layout"]["l"] > 0, "layout.l", v["layout"]["l"], "l > 0 mm")
-    _require(0 <= v["layout"]["gamma0_rad"] <= math.pi / 4, "layout.gamma0_deg", table["layout"]["gamma0_deg"], "0 ≤ gamma0_deg ≤ 45")
+    _require(
+        0 <= v["layout"]["gamma0_rad"] <= math.pi / 4,
+        "layout.gamma0_deg",
+        table["layout"]["gamma0_deg"],
+        "0 ≤ gamma0_deg ≤ 45",
+    )
     loads = {k: _get(table, ("loads", k)) for k in ("M_max", "shock_factor", "gaf_torque")}
     for k, value in loads.items():
-        _require(value > 0 if k != "gaf_torque" else value >= 0, f"loads.{k}", value, "> 0" if k != "gaf_torque" else "≥ 0 N·m")
+        _require(
+            value > 0 if k != "gaf_torque" else value >= 0,
+            f"loads.{k}",
+            value,
+            "> 0" if k != "gaf_torque" else "≥ 0 N·m",
+        )
     v["loads"] = loads
     hertz = {k: _get(table, ("hertz", k)) for k in ("P_s", "P_d", "P_sd", "C_s", "conformity")}
     for k in ("P_s", "P_d", "P_sd", "C_s"):
         _require(hertz[k] > 0, f"hertz.{k}", hertz[k], "> 0")
-    _require(hertz["conformity"] > 1, "hertz.conformity", hertz["conformity"], "conformity Ψ > 1 (workbook range 1.002–1.008)")
+    _require(
+        hertz["conformity"] > 1,
+        "hertz.conformity",
+        hertz["conformity"],
+        "conformity Ψ > 1 (workbook range 1.002–1.008)",
+    )
     hertz["n_rollers"] = _get(table, ("hertz", "n_rollers"), int)
     _require(hertz["n_rollers"] >= 1, "hertz.n_rollers", hertz["n_rollers"], "≥ 1")
     v["hertz"] = hertz
     life = {"required_km": _get(table, ("life", "required_km"))}
     _require(life["required_km"] > 0, "life.required_km", life["required_km"], "> 0 km")
-    spectrum = {k: _get(table, ("life", k), list) for k in ("torque", "speed", "vehicle_speed", "share")}
+    spectrum = {
+        k: _get(table, ("life", k), list) for k in ("torque", "speed", "vehicle_speed", "share")
+    }
     lengths = {k: len(x) for k, x in spectrum.items()}
-    _require(len(set(lengths.values())) == 1, "life", lengths, "torque, speed, vehicle_speed and share of one length")
+    _require(
+        len(set(lengths.values())) == 1,
+        "life",
+        lengths,
+        "torque, speed, vehicle_speed and share of one length",
+    )
     for k in ("torque", "speed", "vehicle_speed", "share"):
         _require(all(x >= 0 for x in spectrum[k]), f"life.{k}", spectrum[k], "values ≥ 0")
-    _require(abs(sum(spectrum["share"]) - 1) < 1e-6, "life.share", spectrum["share"], "shares summing to 1")
+    _require(
+        abs(sum(spectrum["share"]) - 1) < 1e-6,
+        "life.share",
+        spectrum["share"],
+        "shares summing to 1",
+    )
     life["spectrum"] = spectrum
     angles = _get(table, ("life", "conditions", "angle_deg"), list)
     shares = _get(table, ("life", "conditions", "share"), list)
-    names = table["life"]["conditions"].get("names", [f"condition {i + 1}" for i in range(len(angles))])
-    _require(len(angles) == len(shares) == len(names), "life.conditions", {"angle_deg": len(angles), "share": len(shares), "names": len(names)}, "lists of one length")
-    _require(all(0 <= a < 90 for a in angles), "life.conditions.angle_deg", angles, "0 ≤ angle < 90")
-    _require(all(s >= 0 for s in shares) and abs(sum(shares) - 1) < 1e-6, "life.conditions.share", shares, "shares ≥ 0 summing to 1")
-    life["conditions"] = {"names": [str(n) for n in names], "angle_rad": [math.radians(a) for a in angles], "share": shares}
+    names = table["life"]["conditions"].get(
+        "names", [f"condition {i + 1}" for i in range(len(angles))]
+    )
+    _require(
+        len(angles) == len(shares) == len(names),
+        "life.conditions",
+        {"angle_deg": len(angles), "share": len(shares), "names": len(names)},
+        "lists of one length",
+    )
+    _require(
+        all(0 <= a < 90 for a in angles), "life.conditions.angle_deg", angles, "0 ≤ angle < 90"
+    )
+    _require(
+        all(s >= 0 for s in shares) and abs(sum(shares) - 1) < 1e-6,
+        "life.conditions.share",
+        shares,
+        "shares ≥ 0 summing to 1",
+    )
+    life["conditions"] = {
+        "names": [str(n) for n in names],
+        "angle_rad": [math.radians(a) for a in angles],
+        "share": shares,
+    }
     v["life"] = life
-    friction = {"grease": _get(table, ("friction", "grease"), str), "lam": _get(table, ("friction", "lam")), "gaf_model": _get(table, ("friction", "gaf_model"), str)}
-    _require(friction["grease"] in ("A", "B", "dry"), "friction.grease", friction["grease"], 'one of "A", "B", "dry"')
+    friction = {
+        "grease": _get(table, ("friction", "grease"), str),
+        "lam": _get(table, ("friction", "lam")),
+        "gaf_model": _get(table, ("friction", "gaf_model"), str),
+    }
+    _require(
+        friction["grease"] in ("A", "B", "dry"),
+        "friction.grease",
+        friction["grease"],
+        'one of "A", "B", "dry"',
+    )
     _require(friction["lam"] >= 0, "friction.lam", friction["lam"], "λ ≥ 0")
-    _require(friction["gaf_model"] in ("stroke", "printed"), "friction.gaf_model", friction["gaf_model"], 'one of "stroke", "printed"')
+    _require(
+        friction["gaf_model"] in ("stroke", "printed"),
+        "friction.gaf_model",
+        friction["gaf_model"],
+        'one of "stroke", "printed"',
+    )
     v["friction"] = friction
-    objective = {k: _get(table, ("objective", k)) for k in ("w_irregularity", "w_gaf", "w_size", "irregularity_ref", "gaf_rms_ref", "size_ref")}
+    objective = {
+        k: _get(table, ("objective", k))
+        for k in (
+            "w_irregularity",
+            "w_gaf",
+            "w_size",
+            "irregularity_ref",
+            "gaf_rms_ref",
+            "size_ref",
+        )
+    }
     for k, value in objective.items():
-        _require(value >= 0 if k.startswith("w_") else value > 0, f"objective.{k}", value, "≥ 0" if k.startswith("w_") else "> 0")
-    _require(sum(objective[k] for k in ("w_irregularity", "w_gaf", "w_size")) > 0, "objective", "all weights 0", "at least one weight > 0")
+        _require(
+            value >= 0 if k.startswith("w_") else value > 0,
+            f"objective.{k}",
+            value,
+            "≥ 0" if k.startswith("w_") else "> 0",
+        )
+    _require(
+        sum(objective[k] for k in ("w_irregularity", "w_gaf", "w_size")) > 0,
+        "objective",
+        "all weights 0",
+        "at least one weight > 0",
+    )
     v["objective"] = objective
-    v["bounds"] = {"R": _interval(table, ("bounds", "R")), "d_roller": _interval(table, ("bounds", "d_roller"))}
+    v["bounds"] = {
+        "R": _interval(table, ("bounds", "R")),
+        "d_roller": _interval(table, ("bounds", "d_roller")),
+    }
     constraints = {"R_over_d": _interval(table, ("constraints", "R_over_d"))}
     if "max_outer_diameter" in table["constraints"]:
         constraints["max_outer_diameter"] = _get(table, ("constraints", "max_outer_diameter"))
-        _require(constraints["max_outer_diameter"] > 0, "constraints.max_outer_diameter", constraints["max_outer_diameter"], "> 0 mm")
+        _require(
+            constraints["max_outer_diameter"] > 0,
+            "constraints.max_outer_diameter",
+            constraints["max_outer_diameter"],
+            "> 0 mm",
+        )
     v["constraints"] = constraints
     r_lo, r_hi = v["bounds"]["R"]
-    _require(r_hi / v["layout"]["l"] <= 0.2, "bounds.R", [r_lo, r_hi], f"R/l ≤ 0.2 with layout.l = {v['layout']['l']:g} mm, so R ≤ {0.2 * v['layout']['l']:g}")
-    solver = {k: _get(table, ("solver", k), int) for k in ("n_theta", "starts", "max_outer", "inner_steps")}
+    _require(
+        r_hi / v["layout"]["l"] <= 0.2,
+        "bounds.R",
+        [r_lo, r_hi],
+        f"R/l ≤ 0.2 with layout.l = {v['layout']['l']:g} mm, so R ≤ {0.2 * v['layout']['l']:g}",
+    )
+    solver = {
+        k: _get(table, ("solver", k), int)
+        for k in ("n_theta", "starts", "max_outer", "inner_steps")
+    }
     solver["tolerance"] = _get(table, ("solver", "tolerance"))
-    _require(solver["n_theta"] >= 6 and solver["n_theta"] % 6 == 0, "solver.n_theta", solver["n_theta"], "a positive multiple of 6")
+    _require(
+        solver["n_theta"] >= 6 and solver["n_theta"] % 6 == 0,
+        "solver.n_theta",
+        solver["n_theta"],
+        "a positive multiple of 6",
+    )
     for k in ("starts", "max_outer", "inner_steps"):
         _require(solver[k] >= 1, f"solver.{k}", solver[k], "≥ 1")
     _require(solver["tolerance"] > 0, "solver.tolerance", solver["tolerance"], "> 0")

@@ -8,16 +8,41 @@ import sys
 def test_bench_writes_its_figures(tmp_path):
     out = tmp_path / "bench.json"
     result = subprocess.run(
-        [sys.executable, "-m", "tripodjax.bench", "--layouts", "60", "--fsolve-layouts", "1", "--repeats", "1", "--json", str(out)],
-        capture_output=True, text=True, timeout=900,
+        [
+            sys.executable,
+            "-m",
+            "tripodjax.bench",
+            "--layouts",
+            "60",
+            "--fsolve-layouts",
+            "1",
+            "--repeats",
+            "1",
+            "--json",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=900,
     )
     assert result.returncode == 0, result.stderr
     figures = json.loads(out.read_text())
-    assert set(figures["variants"]) == {"newton/float64", "newton/float32", "analytic/float64", "analytic/float32"}
+    assert set(figures["variants"]) == {
+        "newton/float64",
+        "newton/float32",
+        "analytic/float64",
+        "analytic/float32",
+    }
     for entry in [*figures["variants"].values(), figures["numpy_newton"], figures["fsolve_loop"]]:
-        assert entry["points_per_s"] > 0 and set(entry["errors_vs_newton_float64"]) == {"delta_pp", "irregularity", "gamma_pp"}
+        assert entry["points_per_s"] > 0 and set(entry["errors_vs_newton_float64"]) == {
+            "delta_pp",
+            "irregularity",
+            "gamma_pp",
+        }
     # Accuracy is checked (timings are not): the peers and float64 Newton agree; the analytic level is within 2 %.
     assert figures["numpy_newton"]["errors_vs_newton_float64"]["irregularity"] < 1e-10
     assert figures["fsolve_loop"]["errors_vs_newton_float64"]["irregularity"] < 1e-6
-    assert figures["variants"]["analytic/float64"]["errors_vs_newton_float64"]["irregularity"] < 0.02
+    assert (
+        figures["variants"]["analytic/float64"]["errors_vs_newton_float64"]["irregularity"] < 0.02
+    )
     assert "× NumPy" in result.stdout and "gradient (R, l, γ0) / forward cost" in result.stdout

@@ -6,7 +6,9 @@ import sys
 
 
 def run(*args):
-    return subprocess.run([sys.executable, "-m", "tripodjax", *args], capture_output=True, text=True, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-m", "tripodjax", *args], capture_output=True, text=True, timeout=300
+    )
 
 
 def test_default_report_is_case_N():
@@ -14,7 +16,9 @@ def test_default_report_is_case_N():
     assert result.returncode == 0, result.stderr
     assert "seed case N" in result.stdout
     # The seed's §2.11.3: Δ amplitude 4.7e-3 rad, irregularity 2.82 % (2.83 % in the brief's check).
-    amplitude = float(re.search(r"Δ amplitude \(delta_pp/2\)\s+([0-9.e+-]+) rad", result.stdout).group(1))
+    amplitude = float(
+        re.search(r"Δ amplitude \(delta_pp/2\)\s+([0-9.e+-]+) rad", result.stdout).group(1)
+    )
     irregularity = float(re.search(r"irregularity\s+([0-9.]+) %", result.stdout).group(1))
     assert abs(amplitude - 4.7e-3) < 0.05e-3 and 2.82 <= irregularity <= 2.83
 

@@ -6,8 +6,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-
 import reference
+
 from tripodjax import Layout, friction, seed_case
 from tripodjax.kinematics import period_grid
 
@@ -34,13 +34,17 @@ def test_three_roller_mean_of_mu_avg_is_constant():
     each = np.asarray(friction.mu_avg(rollers, math.radians(15), 160.0, friction.GREASE_A))
     np.testing.assert_allclose(each.mean(axis=1), 0.1445, atol=5e-4)
     assert np.ptp(each.mean(axis=1)) < 1e-12
-    assert each.min() == pytest.approx(0.102, abs=5e-4) and each.max() == pytest.approx(0.187, abs=5e-4)
+    assert each.min() == pytest.approx(0.102, abs=5e-4) and each.max() == pytest.approx(
+        0.187, abs=5e-4
+    )
 
 
 def test_static_friction_limits():
     g = math.radians(15)
     assert float(friction.mu_sta(g, 0.0)) == pytest.approx(3.86e-2, rel=1e-14)
-    assert float(friction.mu_sta(g, 1e5)) == pytest.approx(3.86e-2 + 1.34e-1 + 4.5e-3 * 15, rel=1e-12)
+    assert float(friction.mu_sta(g, 1e5)) == pytest.approx(
+        3.86e-2 + 1.34e-1 + 4.5e-3 * 15, rel=1e-12
+    )
 
 
 def test_dynamic_friction_inward_and_outward_are_opposite():
@@ -49,7 +53,9 @@ def test_dynamic_friction_inward_and_outward_are_opposite():
     inward = friction.mu_dyn(theta, g, stroke="in")
     np.testing.assert_allclose(friction.mu_dyn(theta, g, stroke="out"), -inward, rtol=1e-15)
     # Over θ the inward coefficient swings by (γ°/15)(C_d1 μ_slp − C_d2) above μ_S/R.
-    assert float(jnp.min(inward)) == pytest.approx(0.585 * g * 0.06 + (1 - 0.585 * g) * 0.007, rel=1e-12)
+    assert float(jnp.min(inward)) == pytest.approx(
+        0.585 * g * 0.06 + (1 - 0.585 * g) * 0.007, rel=1e-12
+    )
     assert float(jnp.max(inward) - jnp.min(inward)) == pytest.approx(0.4 * 0.06 - 8.4e-3, rel=1e-12)
 
 
@@ -63,8 +69,12 @@ def test_printed_gaf_equals_independent_evaluation(gamma_deg):
 def test_printed_gaf_is_a_third_order_square_wave_linear_in_torque_and_inverse_in_R():
     g = math.radians(20)
     base = np.asarray(friction.gaf(THETA, g, 1000.0, 25.0))
-    np.testing.assert_allclose(friction.gaf(THETA + 2 * np.pi / 3, g, 1000.0, 25.0), base, rtol=1e-9, atol=1e-9)
-    np.testing.assert_allclose(friction.gaf(THETA + np.pi / 3, g, 1000.0, 25.0), -base, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(
+        friction.gaf(THETA + 2 * np.pi / 3, g, 1000.0, 25.0), base, rtol=1e-9, atol=1e-9
+    )
+    np.testing.assert_allclose(
+        friction.gaf(THETA + np.pi / 3, g, 1000.0, 25.0), -base, rtol=1e-9, atol=1e-9
+    )
     np.testing.assert_allclose(friction.gaf(THETA, g, 250.0, 25.0), 0.25 * base, rtol=1e-14)
     np.testing.assert_allclose(friction.gaf(THETA, g, 1000.0, 50.0), 0.5 * base, rtol=1e-14)
     sign_changes = np.count_nonzero(np.diff(np.sign(base[:-1])))
@@ -79,8 +89,11 @@ def test_printed_model_keeps_a_lambda_square_wave_at_zero_angle():
 
 def test_stroke_model_vanishes_at_zero_angle_and_decreases_towards_it():
     gammas = np.radians([20.0, 10.0, 5.0, 2.0, 1.0, 0.5, 0.2, 0.05, 0.0])
-    rms = [float(jnp.sqrt(jnp.mean(friction.gaf(THETA, g, 1000.0, 25.0, model="stroke") ** 2))) for g in gammas]
-    assert all(a > b for a, b in zip(rms, rms[1:]))
+    rms = [
+        float(jnp.sqrt(jnp.mean(friction.gaf(THETA, g, 1000.0, 25.0, model="stroke") ** 2)))
+        for g in gammas
+    ]
+    assert all(a > b for a, b in zip(rms, rms[1:], strict=False))
     assert rms[-1] == 0.0
     dgaf = jax.grad(lambda g: jnp.sum(friction.gaf(THETA, g, 1000.0, 25.0, model="stroke")))(0.0)
     assert np.isfinite(float(dgaf))
@@ -102,18 +115,27 @@ def test_halfshaft_gaf_is_the_printed_model_on_the_independent_kinematics():
     theta = np.asarray(period_grid(360, jnp.float64))
     psi, gamma = reference.solve(theta, layout.R, layout.l, layout.gamma0)
     # Lee's roller angle is ψ_i + 90°; γ varies per θ.
-    expected = np.array([printed_gaf(p + np.pi / 2, math.degrees(g), 1000.0, layout.R, 0.04, 0.007) for p, g in zip(psi, gamma)])
+    expected = np.array(
+        [
+            printed_gaf(p + np.pi / 2, math.degrees(g), 1000.0, layout.R, 0.04, 0.007)
+            for p, g in zip(psi, gamma, strict=False)
+        ]
+    )
     np.testing.assert_allclose(result.force, expected, rtol=1e-9, atol=1e-8)
     assert float(result.rms) == pytest.approx(np.sqrt(np.mean(expected**2)), rel=1e-9)
     assert float(result.peak) == pytest.approx(np.abs(expected).max(), rel=1e-12)
     fft = np.fft.rfft(expected) / len(expected)
-    assert float(result.third_order) == pytest.approx(2 * np.abs(fft[1]), rel=1e-9)  # one period = order 3
+    assert float(result.third_order) == pytest.approx(
+        2 * np.abs(fft[1]), rel=1e-9
+    )  # one period = order 3
 
 
 def test_halfshaft_stroke_model_at_zero_layout_angle():
     result = friction.gaf_halfshaft(Layout(25.0, 500.0, 0.0), 1000.0, model="stroke")
     assert float(result.rms) == 0.0 and float(result.peak) == 0.0
-    grads = jax.grad(lambda lay: friction.gaf_halfshaft(lay, 1000.0, model="stroke").rms)(Layout(25.0, 500.0, 0.0))
+    grads = jax.grad(lambda lay: friction.gaf_halfshaft(lay, 1000.0, model="stroke").rms)(
+        Layout(25.0, 500.0, 0.0)
+    )
     assert all(np.isfinite(float(v)) for v in jax.tree_util.tree_leaves(grads))
 
 
@@ -137,7 +159,9 @@ def test_gradients_of_halfshaft_gaf_rms_match_finite_differences(model):
     for name in params.__dataclass_fields__:
         value = getattr(params, name)
         step = 1e-5 * abs(value)
-        fd = central_difference(lambda v: float(rms(layout, 900.0, params.replace(**{name: v}))), value, step)
+        fd = central_difference(
+            lambda v, name=name: float(rms(layout, 900.0, params.replace(**{name: v}))), value, step
+        )
         assert float(getattr(g_params, name)) == pytest.approx(fd, rel=1e-4, abs=1e-9), name
     g_layout, g_torque = jax.grad(rms, argnums=(0, 1))(layout, 900.0, params)
     assert float(g_torque) == pytest.approx(float(rms(layout, 900.0, params)) / 900.0, rel=1e-12)
@@ -146,10 +170,12 @@ def test_gradients_of_halfshaft_gaf_rms_match_finite_differences(model):
         step = 1e-6 * base
         fields = {"R": layout.R, "l": layout.l, "gamma0": layout.gamma0}
 
-        def moved(v):
+        def moved(v, fields=fields, name=name):
             return float(rms(Layout(**{**fields, name: v}), 900.0, params))
 
-        assert float(getattr(g_layout, name)) == pytest.approx(central_difference(moved, base, step), rel=1e-4), name
+        assert float(getattr(g_layout, name)) == pytest.approx(
+            central_difference(moved, base, step), rel=1e-4
+        ), name
 
 
 def test_float32_gaf_close_to_float64(float32_default):
@@ -161,9 +187,15 @@ def test_float32_gaf_close_to_float64(float32_default):
 
 
 def test_rolling_resistance_utilities():
-    assert float(friction.rolling_resistance_hysteresis(0.3, 20.0, 0.1, contact="line")) == pytest.approx(0.1 * 0.6 / (3 * math.pi * 20))
-    assert float(friction.rolling_resistance_hysteresis(0.3, 20.0, 0.1)) == pytest.approx(0.1 * 0.9 / (16 * 20))
-    assert float(friction.rolling_resistance_microslip(2.0, 20.0, 0.06)) == pytest.approx(0.08 * 0.06 * 0.01)
+    assert float(
+        friction.rolling_resistance_hysteresis(0.3, 20.0, 0.1, contact="line")
+    ) == pytest.approx(0.1 * 0.6 / (3 * math.pi * 20))
+    assert float(friction.rolling_resistance_hysteresis(0.3, 20.0, 0.1)) == pytest.approx(
+        0.1 * 0.9 / (16 * 20)
+    )
+    assert float(friction.rolling_resistance_microslip(2.0, 20.0, 0.06)) == pytest.approx(
+        0.08 * 0.06 * 0.01
+    )
 
 
 def test_friction_from_trunnion_force_recovers_a_known_coefficient():
@@ -174,22 +206,45 @@ def test_friction_from_trunnion_force_recovers_a_known_coefficient():
         st, ct, sg, cg = np.sin(theta), np.cos(theta), np.sin(gamma), np.cos(gamma)
         normal_dir = np.array([st**2 + cg * ct**2, ct * sg, -st * ct * (cg - 1)])
         friction_dir = np.array([-ct * sg, cg, st * sg])
-        assert np.linalg.norm(normal_dir) == pytest.approx(1, rel=1e-14) and abs(normal_dir @ friction_dir) < 1e-15
+        assert (
+            np.linalg.norm(normal_dir) == pytest.approx(1, rel=1e-14)
+            and abs(normal_dir @ friction_dir) < 1e-15
+        )
         N, mu = rng.uniform(500, 5000), rng.uniform(0.02, 0.3)
         F = N * normal_dir + mu * N * friction_dir
-        assert float(friction.friction_from_trunnion_force(*F, theta, gamma)) == pytest.approx(mu, rel=1e-12)
+        assert float(friction.friction_from_trunnion_force(*F, theta, gamma)) == pytest.approx(
+            mu, rel=1e-12
+        )
 
 
 @pytest.mark.parametrize(
     "call, message",
     [
-        (lambda: friction.gaf(0.0, 0.3, -5.0, 25.0), "torque = -5.0 is outside the allowed range: torque ≥ 0 N·m"),
+        (
+            lambda: friction.gaf(0.0, 0.3, -5.0, 25.0),
+            "torque = -5.0 is outside the allowed range: torque ≥ 0 N·m",
+        ),
         (lambda: friction.gaf(0.0, 0.3, 100.0, 0.0), "R = 0.0 is outside the allowed range: R > 0"),
-        (lambda: friction.gaf(0.0, 0.3, 100.0, 25.0, model="smooth"), "model = 'smooth' is not allowed; allowed: printed, stroke"),
-        (lambda: friction.gaf_halfshaft(seed_case("N"), -1.0), "torque = -1.0 is outside the allowed range"),
-        (lambda: friction.mu_dyn(0.0, 0.3, stroke="up"), "stroke = 'up' is not allowed; allowed: in, out"),
-        (lambda: friction.FrictionParams(mu_slp=-0.1), "FrictionParams.mu_slp = -0.1 is outside the allowed range: mu_slp ≥ 0"),
-        (lambda: friction.rolling_resistance_hysteresis(0.3, 20.0, 0.1, contact="point"), "contact = 'point' is not allowed"),
+        (
+            lambda: friction.gaf(0.0, 0.3, 100.0, 25.0, model="smooth"),
+            "model = 'smooth' is not allowed; allowed: printed, stroke",
+        ),
+        (
+            lambda: friction.gaf_halfshaft(seed_case("N"), -1.0),
+            "torque = -1.0 is outside the allowed range",
+        ),
+        (
+            lambda: friction.mu_dyn(0.0, 0.3, stroke="up"),
+            "stroke = 'up' is not allowed; allowed: in, out",
+        ),
+        (
+            lambda: friction.FrictionParams(mu_slp=-0.1),
+            "FrictionParams.mu_slp = -0.1 is outside the allowed range: mu_slp ≥ 0",
+        ),
+        (
+            lambda: friction.rolling_resistance_hysteresis(0.3, 20.0, 0.1, contact="point"),
+            "contact = 'point' is not allowed",
+        ),
     ],
 )
 def test_bad_inputs_raise_clear_errors(call, message):

@@ -1,12 +1,11 @@
 """The halfshaft solve (seed §2.9) against an independent fsolve, identities and limits."""
 
-
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-
 import reference
+
 from tripodjax import Layout, seed_case, solve_halfshaft
 from tripodjax.halfshaft import scaled_jacobian, scaled_residual
 
@@ -26,7 +25,11 @@ def test_scaled_residual_is_the_printed_pair_divided_by_2l_sin_half_gamma0():
     rng = np.random.default_rng(1)
     for _ in range(20):
         R, l, g0 = rng.uniform(15, 45), rng.uniform(250, 900), rng.uniform(0.05, 0.78)
-        theta, delta, v = rng.uniform(0, 2 * np.pi), rng.uniform(-0.02, 0.02), rng.uniform(-0.05, 0.05)
+        theta, delta, v = (
+            rng.uniform(0, 2 * np.pi),
+            rng.uniform(-0.02, 0.02),
+            rng.uniform(-0.05, 0.05),
+        )
         scaled = np.asarray(scaled_residual(R, l, g0, theta, jnp.array([delta, v])))
         printed = unscaled_pair(R, l, g0, theta, delta, g0 * (1 + v)) / (2 * l * np.sin(g0 / 2))
         np.testing.assert_allclose(scaled, printed, rtol=1e-9, atol=1e-13)
@@ -38,7 +41,7 @@ def test_closed_form_jacobian_matches_autodiff(gamma0):
     for _ in range(10):
         theta, x = rng.uniform(0, 2 * np.pi), jnp.asarray(rng.uniform(-0.03, 0.03, 2))
         closed = scaled_jacobian(40.0, 200.0, gamma0, theta, x)
-        auto = jax.jacfwd(lambda y: scaled_residual(40.0, 200.0, gamma0, theta, y))(x)
+        auto = jax.jacfwd(lambda y, theta=theta: scaled_residual(40.0, 200.0, gamma0, theta, y))(x)
         np.testing.assert_allclose(closed, auto, rtol=1e-12, atol=1e-15)
 
 
@@ -50,7 +53,9 @@ def assert_matches_fsolve(layout, theta=THETA, atol=1e-12):
     np.testing.assert_allclose(sol.gamma, gamma, rtol=0, atol=atol)
 
 
-@pytest.mark.parametrize("code", ["N", "L3", "L4", "L7", "R2", "R3", "R4", "g5", "g10", "g15", "g25"])
+@pytest.mark.parametrize(
+    "code", ["N", "L3", "L4", "L7", "R2", "R3", "R4", "g5", "g10", "g15", "g25"]
+)
 def test_table_2_1_pointwise_against_fsolve(code):
     assert_matches_fsolve(seed_case(code))
 
@@ -62,7 +67,9 @@ def test_random_layouts_pointwise_against_fsolve():
         assert_matches_fsolve(layout, theta=THETA[::4])
 
 
-@pytest.mark.parametrize("layout", [Layout.from_degrees(25.0, 500.0, 45.0), Layout.from_degrees(40.0, 200.0, 45.0)])
+@pytest.mark.parametrize(
+    "layout", [Layout.from_degrees(25.0, 500.0, 45.0), Layout.from_degrees(40.0, 200.0, 45.0)]
+)
 def test_extremes_45_degrees_and_R_over_l_0_2(layout):
     assert_matches_fsolve(layout)
 
@@ -101,12 +108,16 @@ def test_gamma0_zero_is_homokinetic_with_finite_derivatives():
 
 def test_tiny_gamma0_converges_in_float32_and_float64():
     for dtype in (jnp.float32, jnp.float64):
-        layout = Layout(jnp.asarray(25.0, dtype), jnp.asarray(500.0, dtype), jnp.asarray(1e-8, dtype))
+        layout = Layout(
+            jnp.asarray(25.0, dtype), jnp.asarray(500.0, dtype), jnp.asarray(1e-8, dtype)
+        )
         sol = solve_halfshaft(layout, jnp.asarray(THETA, dtype))
         assert sol.psi.dtype == dtype
         assert bool(jnp.all(sol.converged)) and bool(jnp.all(jnp.isfinite(sol.psi)))
         # Δ ≈ −(e/|h|) sin 3θ with e/|h| ≈ R γ0 / (4 l)
-        np.testing.assert_allclose(sol.delta, -25.0e-8 / 2000 * np.sin(3 * THETA), rtol=0, atol=1e-15)
+        np.testing.assert_allclose(
+            sol.delta, -25.0e-8 / 2000 * np.sin(3 * THETA), rtol=0, atol=1e-15
+        )
 
 
 def test_non_convergence_is_reported_per_point():
@@ -131,7 +142,10 @@ def test_second_theta_derivative_by_implicit_differentiation_matches_differences
         return jax.jvp(lambda u: solve_halfshaft(layout, u).psi, (t,), (1.0,))[1]
 
     d2 = jax.jvp(dpsi, (theta0,), (1.0,))[1]
-    psi = [reference.solve(np.array([theta0 + k * step]), layout.R, layout.l, layout.gamma0)[0][0] for k in (-1, 0, 1)]
+    psi = [
+        reference.solve(np.array([theta0 + k * step]), layout.R, layout.l, layout.gamma0)[0][0]
+        for k in (-1, 0, 1)
+    ]
     fd2 = (psi[2] - 2 * psi[1] + psi[0]) / step**2
     assert float(d2) == pytest.approx(fd2, rel=1e-4)
     assert float(dpsi(theta0)) == pytest.approx((psi[2] - psi[0]) / (2 * step), rel=1e-9)

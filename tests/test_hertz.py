@@ -43,7 +43,9 @@ def test_elliptic_integrals_float32():
 
 
 def test_mu_nu_matches_independent_scipy_evaluation():
-    cos_tau = np.concatenate([np.linspace(1e-3, 0.99, 60), [0.995, 0.996008, 0.999, 0.9995, 0.9999]])
+    cos_tau = np.concatenate(
+        [np.linspace(1e-3, 0.99, 60), [0.995, 0.996008, 0.999, 0.9995, 0.9999]]
+    )
     ours = hertz.hertz_coefficients(cos_tau)
     reference = np.array([scipy_mu_nu(c) for c in cos_tau])
     np.testing.assert_allclose(ours.kappa, reference[:, 0], rtol=1e-8)
@@ -55,7 +57,9 @@ def test_limits_of_the_hertz_coefficients():
     for name in ("kappa", "mu", "nu", "mu_nu"):
         assert float(getattr(at_zero, name)) == pytest.approx(1.0, abs=1e-14)
     near_zero = hertz.hertz_coefficients(1e-9)
-    assert float(near_zero.mu) == pytest.approx(1.0, abs=1e-8) and float(near_zero.nu) == pytest.approx(1.0, abs=1e-8)
+    assert float(near_zero.mu) == pytest.approx(1.0, abs=1e-8) and float(
+        near_zero.nu
+    ) == pytest.approx(1.0, abs=1e-8)
     near_one = hertz.hertz_coefficients(np.array([0.9999, 0.99999, 0.999999]))
     assert np.all(np.isfinite(near_one.mu_nu)) and np.all(np.diff(near_one.mu_nu) > 0)
     # The sign of cos τ does not matter (the brief: use its magnitude).
@@ -73,13 +77,17 @@ def test_mu_nu_float32_close_to_float64():
 def test_mu_nu_derivative_matches_differences_and_is_finite_at_zero():
     c, step = 0.996, 1e-7
     grad = float(jax.grad(hertz.mu_nu)(c))
-    assert grad == pytest.approx((float(hertz.mu_nu(c + step)) - float(hertz.mu_nu(c - step))) / (2 * step), rel=1e-6)
+    assert grad == pytest.approx(
+        (float(hertz.mu_nu(c + step)) - float(hertz.mu_nu(c - step))) / (2 * step), rel=1e-6
+    )
     assert np.isfinite(float(jax.grad(hertz.mu_nu)(0.0)))
 
 
 def test_steel_constant_858_follows_from_the_elastic_constants():
     E, nu = hertz.YOUNG_MODULUS_STEEL, hertz.POISSON_STEEL
-    assert 3 / (2 * math.pi) * (E / (3 * (1 - nu**2))) ** (2 / 3) == pytest.approx(hertz.HERTZ_STEEL, rel=2e-4)
+    assert 3 / (2 * math.pi) * (E / (3 * (1 - nu**2))) ** (2 / 3) == pytest.approx(
+        hertz.HERTZ_STEEL, rel=2e-4
+    )
 
 
 def test_workbook_example_capacities():
@@ -93,18 +101,24 @@ def test_workbook_example_capacities():
     assert float(result.M_s) == pytest.approx(7991, rel=3e-3)
     assert float(result.M_d) == pytest.approx(1505, rel=3e-3)
     assert float(result.M_sd) == pytest.approx(4963, rel=3e-3)
-    assert float(result.M_s) / 1154 == pytest.approx(6.923, rel=3e-3)  # the sheet's static safety at M_max
+    assert float(result.M_s) / 1154 == pytest.approx(
+        6.923, rel=3e-3
+    )  # the sheet's static safety at M_max
 
 
 def test_workbook_and_consistent_minimum_sizes():
     common = dict(R_over_d=0.63, conformity=WORKBOOK["conformity"], P_s=2350.0, C_s=1.35)
     d_wb, R_wb = hertz.min_roller_diameter(1154.0, rule="workbook", **common)
     # The sheet's μν comes from a table (2.650 against the exact 2.6521): 0.1 %.
-    assert float(d_wb) == pytest.approx(37.654, rel=1e-3) and float(R_wb) == pytest.approx(23.722, rel=1e-3)
+    assert float(d_wb) == pytest.approx(37.654, rel=1e-3) and float(R_wb) == pytest.approx(
+        23.722, rel=1e-3
+    )
     d_min, R_min = hertz.min_roller_diameter(1154.0, **common)
     assert float(d_min) == pytest.approx(25.1, abs=0.05)
     # The consistent rule is the inverse of the static capacity.
-    check = hertz.capacities(d_min, R_min, conformity=common["conformity"], P_s=2350.0, P_d=1.0, P_sd=1.0, C_s=1.35)
+    check = hertz.capacities(
+        d_min, R_min, conformity=common["conformity"], P_s=2350.0, P_d=1.0, P_sd=1.0, C_s=1.35
+    )
     assert float(check.M_s) == pytest.approx(1154.0, rel=1e-12)
 
 
@@ -113,7 +127,9 @@ def test_torque_law_scaling_and_working_angle():
     bigger = hertz.capacities(80.0, 50.0, **WORKBOOK)
     assert float(bigger.M_s) == pytest.approx(8 * float(base.M_s), rel=1e-12)  # d² R
     angled = hertz.capacities(40.0, 25.0, gamma=0.4, **WORKBOOK)
-    assert float(angled.M_d) == pytest.approx(float(base.M_d) * 0.5 * (1 + math.cos(0.4)), rel=1e-12)
+    assert float(angled.M_d) == pytest.approx(
+        float(base.M_d) * 0.5 * (1 + math.cos(0.4)), rel=1e-12
+    )
     assert float(angled.M_s) == float(base.M_s)  # static capacity at γ = 0
 
 
@@ -123,7 +139,9 @@ def test_roller_contact_pressure_and_semi_axes():
     C_p = float(hertz.conformity_coefficient(1.002))
     # p_max = C_p (Q/d²)^(1/3), the seed's 858/(μν)(QΣρ²)^(1/3) with Σρ = dΣρ/d
     assert float(contact.p_max) == pytest.approx(C_p * (load / d**2) ** (1 / 3), rel=2e-4)
-    assert float(contact.p_max) == pytest.approx(1.5 * load / (math.pi * float(contact.a) * float(contact.b)), rel=1e-12)
+    assert float(contact.p_max) == pytest.approx(
+        1.5 * load / (math.pi * float(contact.a) * float(contact.b)), rel=1e-12
+    )
     coeffs = hertz.hertz_coefficients(hertz.contact_geometry(1.002).cos_tau)
     assert float(contact.a) / float(contact.b) == pytest.approx(float(coeffs.kappa), rel=1e-12)
     assert float(hertz.roller_contact(0.0, d, conformity=1.002).p_max) == 0.0
@@ -133,40 +151,61 @@ def test_life_rating_500_hours_at_730_rpm():
     assert float(hertz.life_hours(1505.0, 1505.0, 730.0, 1.0)) == pytest.approx(500.0, rel=1e-14)
     # Cube law and Miner's rule over two equal halves.
     assert float(hertz.life_hours(1000.0, 500.0, 730.0, 1.0)) == pytest.approx(4000.0, rel=1e-14)
-    two = float(hertz.life_hours(1000.0, np.array([1000.0, 500.0]), np.array([730.0, 730.0]), np.array([0.5, 0.5])))
+    two = float(
+        hertz.life_hours(
+            1000.0, np.array([1000.0, 500.0]), np.array([730.0, 730.0]), np.array([0.5, 0.5])
+        )
+    )
     assert two == pytest.approx(1 / (0.5 / 500 + 0.5 / 4000), rel=1e-14)
 
 
 def spectrum_and_conditions():
     spectrum = hertz.LoadSpectrum(
-        torque=np.array([900.0, 400.0, 150.0]), speed=np.array([300.0, 800.0, 1200.0]),
-        vehicle_speed=np.array([40.0, 90.0, 130.0]), share=np.array([0.1, 0.5, 0.4]),
+        torque=np.array([900.0, 400.0, 150.0]),
+        speed=np.array([300.0, 800.0, 1200.0]),
+        vehicle_speed=np.array([40.0, 90.0, 130.0]),
+        share=np.array([0.1, 0.5, 0.4]),
     )
-    conditions = hertz.WorkingConditions(angle=np.radians([6.5, 0.0, 0.0, 12.8, 2.0]), share=np.array([0.45, 0.05, 0.05, 0.3, 0.15]))
+    conditions = hertz.WorkingConditions(
+        angle=np.radians([6.5, 0.0, 0.0, 12.8, 2.0]), share=np.array([0.45, 0.05, 0.05, 0.3, 0.15])
+    )
     return spectrum, conditions
 
 
 def test_joint_life_combines_conditions_by_miner_and_converts_to_km():
     spectrum, conditions = spectrum_and_conditions()
-    life = hertz.joint_life(43.5, 25.55, spectrum, conditions, conformity=WORKBOOK["conformity"], P_d=1347.0, C_s=1.2)
+    life = hertz.joint_life(
+        43.5, 25.55, spectrum, conditions, conformity=WORKBOOK["conformity"], P_d=1347.0, C_s=1.2
+    )
     C_p = hertz.conformity_coefficient(WORKBOOK["conformity"])
     per = []
     for angle in conditions.angle:
         M_d = hertz.torque_at_pressure(1347.0, 43.5, 25.55, C_p=C_p, C_s=1.2, gamma=angle)
-        per.append(1 / np.sum(spectrum.share * spectrum.speed * (spectrum.torque / float(M_d)) ** 3 / 365000))
+        per.append(
+            1
+            / np.sum(spectrum.share * spectrum.speed * (spectrum.torque / float(M_d)) ** 3 / 365000)
+        )
     np.testing.assert_allclose(life.hours_per_condition, per, rtol=1e-12)
-    assert float(life.hours) == pytest.approx(1 / np.sum(conditions.share / np.array(per)), rel=1e-12)
-    assert float(life.km) == pytest.approx(float(life.hours) * np.sum(spectrum.share * spectrum.vehicle_speed), rel=1e-12)
+    assert float(life.hours) == pytest.approx(
+        1 / np.sum(conditions.share / np.array(per)), rel=1e-12
+    )
+    assert float(life.km) == pytest.approx(
+        float(life.hours) * np.sum(spectrum.share * spectrum.vehicle_speed), rel=1e-12
+    )
 
 
 def test_gradients_match_central_differences():
     spectrum, conditions = spectrum_and_conditions()
 
     def life_km(d, R, conformity, P_d):
-        return hertz.joint_life(d, R, spectrum, conditions, conformity=conformity, P_d=P_d, C_s=1.2).km
+        return hertz.joint_life(
+            d, R, spectrum, conditions, conformity=conformity, P_d=P_d, C_s=1.2
+        ).km
 
     def static(d, R, conformity, P_s):
-        return hertz.capacities(d, R, conformity=conformity, P_s=P_s, P_d=1347.0, P_sd=2005.0, C_s=1.2).M_s
+        return hertz.capacities(
+            d, R, conformity=conformity, P_s=P_s, P_d=1347.0, P_sd=2005.0, C_s=1.2
+        ).M_s
 
     x = (43.5, 25.55, 1.004, 1500.0)
     for f in (life_km, static):
@@ -183,17 +222,50 @@ def test_gradients_match_central_differences():
 @pytest.mark.parametrize(
     "call, message",
     [
-        (lambda: hertz.contact_geometry(1.0), "conformity = 1.0 is outside the allowed range: conformity Ψ > 1"),
-        (lambda: hertz.capacities(-1.0, 25.0, **WORKBOOK), "d = -1.0 is outside the allowed range: d > 0"),
-        (lambda: hertz.capacities(43.5, 25.0, **{**WORKBOOK, "P_d": 0.0}), "P_d = 0.0 is outside the allowed range: P_d > 0"),
-        (lambda: hertz.min_roller_diameter(1154.0, R_over_d=0.63, conformity=1.002, P_s=2350.0, C_s=1.35, rule="book"),
-         "rule = 'book' is not allowed; allowed: consistent, workbook"),
-        (lambda: hertz.LoadSpectrum(np.array([1.0, 2.0]), np.array([100.0, -5.0]), np.array([50.0, 60.0]), np.array([0.5, 0.5])),
-         "LoadSpectrum.speed = -5.0 is outside the allowed range: speed ≥ 0 rpm"),
-        (lambda: hertz.LoadSpectrum(np.array([1.0, 2.0]), np.array([100.0, 5.0]), np.array([50.0, 60.0]), np.array([0.5, 0.6])),
-         "LoadSpectrum.share sums to 1.1"),
-        (lambda: hertz.WorkingConditions(np.array([0.1, 0.2]), np.array([0.7, 0.2])), "WorkingConditions.share sums to 0.9"),
-        (lambda: hertz.roller_contact(-10.0, 43.5, conformity=1.002), "load = -10.0 is outside the allowed range: load ≥ 0 N"),
+        (
+            lambda: hertz.contact_geometry(1.0),
+            "conformity = 1.0 is outside the allowed range: conformity Ψ > 1",
+        ),
+        (
+            lambda: hertz.capacities(-1.0, 25.0, **WORKBOOK),
+            "d = -1.0 is outside the allowed range: d > 0",
+        ),
+        (
+            lambda: hertz.capacities(43.5, 25.0, **{**WORKBOOK, "P_d": 0.0}),
+            "P_d = 0.0 is outside the allowed range: P_d > 0",
+        ),
+        (
+            lambda: hertz.min_roller_diameter(
+                1154.0, R_over_d=0.63, conformity=1.002, P_s=2350.0, C_s=1.35, rule="book"
+            ),
+            "rule = 'book' is not allowed; allowed: consistent, workbook",
+        ),
+        (
+            lambda: hertz.LoadSpectrum(
+                np.array([1.0, 2.0]),
+                np.array([100.0, -5.0]),
+                np.array([50.0, 60.0]),
+                np.array([0.5, 0.5]),
+            ),
+            "LoadSpectrum.speed = -5.0 is outside the allowed range: speed ≥ 0 rpm",
+        ),
+        (
+            lambda: hertz.LoadSpectrum(
+                np.array([1.0, 2.0]),
+                np.array([100.0, 5.0]),
+                np.array([50.0, 60.0]),
+                np.array([0.5, 0.6]),
+            ),
+            "LoadSpectrum.share sums to 1.1",
+        ),
+        (
+            lambda: hertz.WorkingConditions(np.array([0.1, 0.2]), np.array([0.7, 0.2])),
+            "WorkingConditions.share sums to 0.9",
+        ),
+        (
+            lambda: hertz.roller_contact(-10.0, 43.5, conformity=1.002),
+            "load = -10.0 is outside the allowed range: load ≥ 0 N",
+        ),
     ],
 )
 def test_bad_inputs_raise_clear_errors(call, message):

@@ -14,7 +14,9 @@ TAU = RNG.uniform(-0.05, 0.05, 64)
 
 def test_direction_cosines_orthonormal_with_spider_axis():
     m = np.asarray(joint.direction_cosines(GAMMA, TAU))
-    np.testing.assert_allclose(m @ np.swapaxes(m, -1, -2), np.broadcast_to(np.eye(3), m.shape), atol=1e-14)
+    np.testing.assert_allclose(
+        m @ np.swapaxes(m, -1, -2), np.broadcast_to(np.eye(3), m.shape), atol=1e-14
+    )
     np.testing.assert_allclose(np.linalg.det(m), 1.0, atol=1e-14)  # a proper rotation
     # The last column is the spider axis Z' (2.3.3).
     axis = np.stack([np.sin(GAMMA) * np.cos(TAU), np.sin(GAMMA) * np.sin(TAU), np.cos(GAMMA)], -1)
@@ -35,7 +37,9 @@ def test_eccentricity_printed_form_and_small_angle_accuracy():
 def test_eccentricity_components_solve_system_2_5_4():
     ex, ey = (np.asarray(c) for c in joint.eccentricity_components(R, GAMMA, PSI))
     k = 0.5 * R * (1 - np.cos(GAMMA)) / np.cos(GAMMA)
-    np.testing.assert_allclose(ex * np.sin(PSI) - ey * np.cos(PSI), -k * np.sin(2 * PSI), atol=1e-12)
+    np.testing.assert_allclose(
+        ex * np.sin(PSI) - ey * np.cos(PSI), -k * np.sin(2 * PSI), atol=1e-12
+    )
     np.testing.assert_allclose(ex * np.cos(PSI) + ey * np.sin(PSI), k * np.cos(2 * PSI), atol=1e-12)
     np.testing.assert_allclose(np.hypot(ex, ey), joint.eccentricity(R, GAMMA), rtol=1e-13)
 
@@ -74,7 +78,9 @@ def test_roller_centres_from_track_points_through_the_direction_cosines():
 def test_roller_centres_lie_on_the_path_ellipse():
     x, y, _ = joint.roller_centres(R, GAMMA, PSI)
     major, minor = joint.roller_path_semi_axes(R, GAMMA)
-    np.testing.assert_allclose((x / major[:, None]) ** 2 + (y / minor[:, None]) ** 2, 1.0, rtol=1e-13)
+    np.testing.assert_allclose(
+        (x / major[:, None]) ** 2 + (y / minor[:, None]) ** 2, 1.0, rtol=1e-13
+    )
 
 
 def test_stable_radial_distance_equals_printed_2_6_4_away_from_singularity():
@@ -93,7 +99,9 @@ def test_radial_distance_at_the_singularity_range_and_period():
     np.testing.assert_allclose(r[:, 0], R + 3 * e, rtol=1e-14)  # sin ψ_1 = 0: finite, R + 3e
     psi = np.linspace(0, 2 * np.pi, 2001)
     r1 = np.asarray(joint.roller_radial_distance(R, gamma, psi))[:, 0]
-    assert r1.min() == pytest.approx(R - e, rel=1e-9) and r1.max() == pytest.approx(R + 3 * e, rel=1e-12)
+    assert r1.min() == pytest.approx(R - e, rel=1e-9) and r1.max() == pytest.approx(
+        R + 3 * e, rel=1e-12
+    )
     shifted = np.asarray(joint.roller_radial_distance(R, gamma, psi + np.pi))[:, 0]
     np.testing.assert_allclose(shifted, r1, rtol=1e-13)  # period π
 

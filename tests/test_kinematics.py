@@ -6,8 +6,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-
 import reference
+
 from tripodjax import TABLE_2_1, Layout, kinematic_metrics, seed_case
 
 COMPARED = ("delta_pp", "irregularity", "gamma_pp", "ecc_max")
@@ -27,12 +27,16 @@ def test_seed_case_N_numbers():
     assert float(metrics.delta_pp) / 2 == pytest.approx(4.7e-3, abs=0.05e-3)
     assert 0.0282 <= float(metrics.irregularity) <= 0.0283
     # The brief: γ ripples +0.19° above γ0.
-    assert math.degrees(float(metrics.gamma_max) - seed_case("N").gamma0) == pytest.approx(0.19, abs=0.005)
+    assert math.degrees(float(metrics.gamma_max) - seed_case("N").gamma0) == pytest.approx(
+        0.19, abs=0.005
+    )
 
 
 def test_seed_trends_over_table_2_1():
     """§2.10: Δ p-p grows with R and γ0, falls with l, about 0.4–0.9° over the table."""
-    pp = {code: math.degrees(float(kinematic_metrics(seed_case(code)).delta_pp)) for code in TABLE_2_1}
+    pp = {
+        code: math.degrees(float(kinematic_metrics(seed_case(code)).delta_pp)) for code in TABLE_2_1
+    }
     assert pp["R2"] < pp["N"] < pp["R3"] < pp["R4"]
     assert pp["g5"] < pp["g10"] < pp["g15"] < pp["N"] < pp["g25"]
     assert pp["L3"] > pp["L4"] > pp["N"] > pp["L7"]
@@ -53,12 +57,16 @@ def test_random_layout_metrics_against_fsolve():
         assert_metrics_match_reference(layout, rtol=1e-6)
 
 
-@pytest.mark.parametrize("layout", [Layout.from_degrees(25.0, 500.0, 45.0), Layout(40.0, 200.0, 0.6)])
+@pytest.mark.parametrize(
+    "layout", [Layout.from_degrees(25.0, 500.0, 45.0), Layout(40.0, 200.0, 0.6)]
+)
 def test_extreme_layout_metrics_against_fsolve(layout):
     assert_metrics_match_reference(layout, rtol=1e-6)
 
 
-@pytest.mark.parametrize("name", ["irregularity", "ecc_max", "delta_pp", "gamma_pp", "roller_stroke"])
+@pytest.mark.parametrize(
+    "name", ["irregularity", "ecc_max", "delta_pp", "gamma_pp", "roller_stroke"]
+)
 def test_gradients_match_central_differences(name):
     base = {"R": 28.0, "l": 420.0, "gamma0": 0.31}
     grads = jax.grad(lambda lay: getattr(kinematic_metrics(lay), name))(Layout(**base))
@@ -106,11 +114,15 @@ def test_float32_irregularity_within_1e_3_of_float64(float32_default):
 
 def test_vmap_over_layouts_matches_one_by_one():
     codes = ["N", "R4", "g5"]
-    batch = Layout(*(jnp.array([getattr(seed_case(c), f) for c in codes]) for f in ("R", "l", "gamma0")))
+    batch = Layout(
+        *(jnp.array([getattr(seed_case(c), f) for c in codes]) for f in ("R", "l", "gamma0"))
+    )
     batched = jax.vmap(kinematic_metrics)(batch)
     for i, code in enumerate(codes):
         single = kinematic_metrics(seed_case(code))
-        assert float(batched.irregularity[i]) == pytest.approx(float(single.irregularity), rel=1e-13)
+        assert float(batched.irregularity[i]) == pytest.approx(
+            float(single.irregularity), rel=1e-13
+        )
 
 
 def test_n_theta_must_be_a_multiple_of_6_and_fidelity_known():

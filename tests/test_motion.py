@@ -25,9 +25,12 @@ def printed_first_order(R, gamma, theta, w, alpha):
         [
             alpha * R / np.cos(gamma) * np.sin(ti) + w**2 * R / np.cos(gamma) * np.cos(ti),
             -alpha * R * np.cos(ti) + w**2 * R * np.sin(ti),
-            -0.5 * R * np.tan(gamma)
+            -0.5
+            * R
+            * np.tan(gamma)
             * (
-                -2 * alpha * np.sin(ti) - 2 * w**2 * np.cos(ti)
+                -2 * alpha * np.sin(ti)
+                - 2 * w**2 * np.cos(ti)
                 - (1 - np.cos(gamma)) * (3 * alpha * s3 + 9 * w**2 * c3)[:, None]
             ),
         ],
@@ -58,7 +61,10 @@ def test_first_order_spider_peaks_scale_with_the_eccentricity():
     """The seed's 65.1 / 69.3 / 23.7 m/s² use e = 0.77 mm; 2.5.9 gives e(20°) = 0.802 mm for R 25."""
     layout = seed_case("N")
     theta = np.linspace(0, 2 * np.pi, 3601)
-    acc = np.abs(np.asarray(first_order_motion(layout, theta, 100.0).spider_acceleration)).max(axis=0) / 1000
+    acc = (
+        np.abs(np.asarray(first_order_motion(layout, theta, 100.0).spider_acceleration)).max(axis=0)
+        / 1000
+    )
     e = float(joint.eccentricity(layout.R, layout.gamma0))
     np.testing.assert_allclose(acc * 0.77 / e, [65.1, 69.3, 23.7], atol=0.06)
 
@@ -75,8 +81,12 @@ def test_exact_motion_against_time_differences():
         p0 = np.asarray(getattr(motion, f"{field}_position"))
         velocity = (p_plus - p_minus) / (2 * dt)
         acceleration = (p_plus - 2 * p0 + p_minus) / dt**2
-        np.testing.assert_allclose(getattr(motion, f"{field}_velocity"), velocity, rtol=1e-6, atol=1e-4)
-        np.testing.assert_allclose(getattr(motion, f"{field}_acceleration"), acceleration, rtol=1e-3, atol=20.0)
+        np.testing.assert_allclose(
+            getattr(motion, f"{field}_velocity"), velocity, rtol=1e-6, atol=1e-4
+        )
+        np.testing.assert_allclose(
+            getattr(motion, f"{field}_acceleration"), acceleration, rtol=1e-3, atol=20.0
+        )
 
 
 def test_exact_positions_are_the_joint_relations_at_the_solution():
@@ -90,6 +100,10 @@ def test_exact_positions_are_the_joint_relations_at_the_solution():
 def test_exact_and_first_order_roller_accelerations_agree_to_first_order():
     theta = np.linspace(0, 2 * np.pi, 721)
     layout = seed_case("N")
-    exact = np.abs(np.asarray(halfshaft_motion(layout, theta, 100.0).roller_acceleration)).max(axis=(0, 1))
-    approx = np.abs(np.asarray(first_order_motion(layout, theta, 100.0).roller_acceleration)).max(axis=(0, 1))
+    exact = np.abs(np.asarray(halfshaft_motion(layout, theta, 100.0).roller_acceleration)).max(
+        axis=(0, 1)
+    )
+    approx = np.abs(np.asarray(first_order_motion(layout, theta, 100.0).roller_acceleration)).max(
+        axis=(0, 1)
+    )
     np.testing.assert_allclose(exact[:2], approx[:2], rtol=0.03)

@@ -24,11 +24,18 @@ def test_sweep_matches_kinematic_metrics_one_by_one():
     batch = layouts(7)
     result = sweep(batch, outputs=("irregularity", "ecc_max", "roller_stroke", "converged"))
     for i in range(7):
-        single = kinematic_metrics(Layout(float(batch.R[i]), float(batch.l[i]), float(batch.gamma0[i])))
+        single = kinematic_metrics(
+            Layout(float(batch.R[i]), float(batch.l[i]), float(batch.gamma0[i]))
+        )
         assert result["irregularity"][i] == pytest.approx(float(single.irregularity), rel=1e-12)
         assert result["ecc_max"][i] == pytest.approx(float(single.ecc_max), rel=1e-12)
         assert result["roller_stroke"][i] == pytest.approx(float(single.roller_stroke), rel=1e-12)
-    assert result["converged"].all() and set(result) == {"irregularity", "ecc_max", "roller_stroke", "converged"}
+    assert result["converged"].all() and set(result) == {
+        "irregularity",
+        "ecc_max",
+        "roller_stroke",
+        "converged",
+    }
 
 
 def test_chunking_does_not_change_results():
@@ -43,7 +50,11 @@ def test_gaf_outputs_match_gaf_halfshaft():
     batch = layouts(3)
     result = sweep(batch, outputs=("gaf_rms", "gaf_third_order"), torque=800.0, gaf_model="stroke")
     for i in range(3):
-        one = friction.gaf_halfshaft(Layout(float(batch.R[i]), float(batch.l[i]), float(batch.gamma0[i])), 800.0, model="stroke")
+        one = friction.gaf_halfshaft(
+            Layout(float(batch.R[i]), float(batch.l[i]), float(batch.gamma0[i])),
+            800.0,
+            model="stroke",
+        )
         assert result["gaf_rms"][i] == pytest.approx(float(one.rms), rel=1e-12)
         assert result["gaf_third_order"][i] == pytest.approx(float(one.third_order), rel=1e-12)
 
@@ -71,7 +82,9 @@ def test_analytic_solution_at_zero_angle_and_its_residual():
     layout = Layout.from_degrees(25.0, 500.0, 20.0)
     theta = np.linspace(0, 2 * np.pi / 3, 41)
     approx, solved = analytic_halfshaft(layout, theta), solve_halfshaft(layout, theta)
-    assert float(jnp.max(jnp.abs(approx.delta - solved.delta))) < 2e-3 * float(jnp.max(jnp.abs(solved.delta)))
+    assert float(jnp.max(jnp.abs(approx.delta - solved.delta))) < 2e-3 * float(
+        jnp.max(jnp.abs(solved.delta))
+    )
     # Its residual is its truncation error: far above the solve's (~1e-18), and bounded by the
     # first-order γ ripple (v is ~3 % off, Δ ~ 5e-3 here, so g2 ~ 2e-4).
     assert 1e-12 < float(jnp.max(jnp.abs(approx.residual))) < 1e-3
@@ -79,14 +92,18 @@ def test_analytic_solution_at_zero_angle_and_its_residual():
 
 def test_analytic_gradients_match_central_differences():
     base = dict(R=30.0, l=450.0, gamma0=0.3)
-    grads = jax.grad(lambda lay: kinematic_metrics(lay, fidelity="analytic").irregularity)(Layout(**base))
+    grads = jax.grad(lambda lay: kinematic_metrics(lay, fidelity="analytic").irregularity)(
+        Layout(**base)
+    )
     for name in base:
         step = 1e-6 * base[name]
         plus, minus = dict(base), dict(base)
         plus[name] += step
         minus[name] -= step
-        fd = (float(kinematic_metrics(Layout(**plus), fidelity="analytic").irregularity)
-              - float(kinematic_metrics(Layout(**minus), fidelity="analytic").irregularity)) / (2 * step)
+        fd = (
+            float(kinematic_metrics(Layout(**plus), fidelity="analytic").irregularity)
+            - float(kinematic_metrics(Layout(**minus), fidelity="analytic").irregularity)
+        ) / (2 * step)
         assert float(getattr(grads, name)) == pytest.approx(fd, rel=1e-6)
 
 
@@ -110,13 +127,33 @@ def test_numpy_peer_solves_the_same_equations():
 @pytest.mark.parametrize(
     "build, kwargs, message",
     [
-        (lambda: Layout(np.array([25.0, -3.0]), np.array([500.0, 500.0]), np.array([0.2, 0.2])), {}, "layouts.R[1] = -3.0 is outside the allowed range: R > 0 mm"),
-        (lambda: Layout(np.array([25.0, 30.0]), np.array([500.0, 100.0]), np.array([0.2, 0.2])), {}, "layouts.R[1] / layouts.l[1] = 0.3 is outside the allowed range: R/l ≤ 0.2"),
-        (lambda: Layout(np.array([25.0]), np.array([500.0]), np.array([0.9])), {}, "layouts.gamma0[0] = 0.9 is outside the allowed range"),
-        (lambda: Layout(np.array([25.0, 30.0]), np.array([500.0]), np.array([0.2, 0.2])), {}, "1-D arrays of one length"),
+        (
+            lambda: Layout(np.array([25.0, -3.0]), np.array([500.0, 500.0]), np.array([0.2, 0.2])),
+            {},
+            "layouts.R[1] = -3.0 is outside the allowed range: R > 0 mm",
+        ),
+        (
+            lambda: Layout(np.array([25.0, 30.0]), np.array([500.0, 100.0]), np.array([0.2, 0.2])),
+            {},
+            "layouts.R[1] / layouts.l[1] = 0.3 is outside the allowed range: R/l ≤ 0.2",
+        ),
+        (
+            lambda: Layout(np.array([25.0]), np.array([500.0]), np.array([0.9])),
+            {},
+            "layouts.gamma0[0] = 0.9 is outside the allowed range",
+        ),
+        (
+            lambda: Layout(np.array([25.0, 30.0]), np.array([500.0]), np.array([0.2, 0.2])),
+            {},
+            "1-D arrays of one length",
+        ),
         (lambda: layouts(2), {"outputs": ("irregularity", "gaf_rms")}, "need a torque"),
         (lambda: layouts(2), {"outputs": ("speed",)}, "not allowed; allowed: delta_pp"),
-        (lambda: layouts(2), {"fidelity": "exact"}, "fidelity = 'exact' is not allowed; allowed: newton, analytic"),
+        (
+            lambda: layouts(2),
+            {"fidelity": "exact"},
+            "fidelity = 'exact' is not allowed; allowed: newton, analytic",
+        ),
         (lambda: layouts(2), {"n_theta": 100}, "n_theta = 100 is not allowed"),
     ],
 )
@@ -148,8 +185,12 @@ def test_sharded_sweep_equals_one_device_sweep():
         print(json.dumps({"devices": len(jax.devices()), "diff": max(float(np.max(np.abs(many[n] - one[n]) / np.abs(one[n]))) for n in names)}))
         """
     )
-    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4", JAX_PLATFORMS="cpu")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=600)
+    env = dict(
+        os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4", JAX_PLATFORMS="cpu"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=600
+    )
     assert out.returncode == 0, out.stderr
     result = json.loads(out.stdout.strip().splitlines()[-1])
     assert result["devices"] == 4

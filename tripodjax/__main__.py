@@ -10,12 +10,16 @@ def _parse(argv):
         prog="python -m tripodjax",
         description="Kinematics report of a tripod-joint halfshaft (float64).",
     )
-    parser.add_argument("--R", type=float, default=25.0, help="track pitch-circle radius [mm] (default 25)")
+    parser.add_argument(
+        "--R", type=float, default=25.0, help="track pitch-circle radius [mm] (default 25)"
+    )
     parser.add_argument("--l", type=float, default=500.0, help="shaft length [mm] (default 500)")
     parser.add_argument(
         "--gamma0", type=float, default=20.0, help="layout articulation angle [deg] (default 20)"
     )
-    parser.add_argument("--n-theta", type=int, default=360, help="angles per revolution (default 360)")
+    parser.add_argument(
+        "--n-theta", type=int, default=360, help="angles per revolution (default 360)"
+    )
     return parser.parse_args(argv)
 
 
@@ -23,7 +27,9 @@ def main(argv=None):
     args = _parse(argv)
     import jax
 
-    jax.config.update("jax_enable_x64", True)  # the command's own choice; the library never does this
+    jax.config.update(
+        "jax_enable_x64", True
+    )  # the command's own choice; the library never does this
     import tripodjax
 
     try:
@@ -44,12 +50,21 @@ def main(argv=None):
         ("γ max", f"{math.degrees(float(metrics.gamma_max)):.4f} °", ""),
         ("eccentricity max", f"{float(metrics.ecc_max):.4f} mm", ""),
         ("roller radial stroke", f"{float(metrics.roller_stroke):.4f} mm", ""),
-        ("spider orbit a / b p-p", f"{float(metrics.spider_orbit_x):.4f} / {float(metrics.spider_orbit_y):.4f} mm", ""),
+        (
+            "spider orbit a / b p-p",
+            f"{float(metrics.spider_orbit_x):.4f} / {float(metrics.spider_orbit_y):.4f} mm",
+            "",
+        ),
         ("spider axial Z*−c p-p", f"{float(metrics.spider_orbit_z):.4f} mm", ""),
         ("Newton converged", str(bool(metrics.converged)), ""),
     ]
-    print(f"tripodjax {tripodjax.__version__} — halfshaft kinematics, float64, {args.n_theta} angles/rev")
-    print(f"layout: R = {args.R:g} mm, l = {args.l:g} mm, γ0 = {args.gamma0:g}°" + (" (seed case N)" if nominal else ""))
+    print(
+        f"tripodjax {tripodjax.__version__} — halfshaft kinematics, float64, {args.n_theta} angles/rev"
+    )
+    print(
+        f"layout: R = {args.R:g} mm, l = {args.l:g} mm, γ0 = {args.gamma0:g}°"
+        + (" (seed case N)" if nominal else "")
+    )
     width = max(len(r[0]) for r in rows)
     for name, value, ref in rows:
         ref = f"   seed: {ref}" if (ref and nominal) else ""

@@ -38,7 +38,10 @@ def random_layouts(n, seed=0):
 # --------------------------------------------------------------------------- NumPy peer
 
 
-def numpy_newton_metrics(R, l, gamma0, n_theta, rtol=32 * np.finfo(float).eps, max_steps=24):
+NUMPY_RTOL = 32 * np.finfo(float).eps
+
+
+def numpy_newton_metrics(R, l, gamma0, n_theta, rtol=NUMPY_RTOL, max_steps=24):
     """delta_pp, irregularity, gamma_pp by a vectorised NumPy Newton of the same scaled pair.
 
     The residual and closed-form Jacobian are the library's own
@@ -46,7 +49,13 @@ def numpy_newton_metrics(R, l, gamma0, n_theta, rtol=32 * np.finfo(float).eps, m
     module), with the same start, tolerance and implicit dψ/dθ: the peer
     differs only in running on NumPy.
     """
-    from tripodjax.halfshaft import analytic_unknowns, first_order_amplitude, layout_constants, newton_step, scaled_system
+    from tripodjax.halfshaft import (
+        analytic_unknowns,
+        first_order_amplitude,
+        layout_constants,
+        newton_step,
+        scaled_system,
+    )
 
     n_period = n_theta // 3
     theta = np.arange(n_period) * (2 * np.pi / 3 / n_period)
@@ -58,7 +67,10 @@ def numpy_newton_metrics(R, l, gamma0, n_theta, rtol=32 * np.finfo(float).eps, m
     for _ in range(max_steps):
         d_delta, d_v = newton_step(*scaled_system(np, consts, delta, v))
         delta, v = delta + d_delta, v + d_v
-        if np.all(np.maximum(np.abs(d_delta), np.abs(d_v)) <= rtol * (np.maximum(np.abs(delta), np.abs(v)) + scale)):
+        if np.all(
+            np.maximum(np.abs(d_delta), np.abs(d_v))
+            <= rtol * (np.maximum(np.abs(delta), np.abs(v)) + scale)
+        ):
             break
     # dψ/dθ = 1 − dΔ/dθ by the implicit function theorem, J·d(Δ, v)/dθ = −∂g/∂θ. g depends on θ
     # only through 3ψ = 3(θ − Δ), so −∂g/∂θ is the Δ-column of J less its direct Δ terms
@@ -81,7 +93,10 @@ def _printed_pair(x, theta, R, l, gamma0):
     psi, gamma = x
     h = -l * np.sin(gamma0) - 0.5 * R * (1 - np.cos(gamma0))
     e = 0.5 * R * (1 - np.cos(gamma)) / np.cos(gamma)
-    return [h * np.sin(theta - psi) - e * np.sin(3 * psi), h * np.cos(theta - psi) + l * np.sin(gamma) + e * np.cos(gamma) * np.cos(3 * psi)]
+    return [
+        h * np.sin(theta - psi) - e * np.sin(3 * psi),
+        h * np.cos(theta - psi) + l * np.sin(gamma) + e * np.cos(gamma) * np.cos(3 * psi),
+    ]
 
 
 def fsolve_metrics(R, l, gamma0, n_theta):
@@ -95,7 +110,7 @@ def fsolve_metrics(R, l, gamma0, n_theta):
     out = {name: [] for name in COMPARED}
     step = 1e-6
     warnings.filterwarnings("ignore", "The iteration is not making good progress", RuntimeWarning)
-    for Ri, li, gi in zip(R, l, gamma0):
+    for Ri, li, gi in zip(R, l, gamma0, strict=False):
         psi, gamma, slope = [], [], []
         for t in theta:
             x = fsolve(_printed_pair, [t, gi], args=(t, Ri, li, gi), xtol=1e-13)
@@ -135,9 +150,18 @@ def run(n_layouts=20000, n_theta=360, fsolve_layouts=20, repeats=3, gradient_lay
 
     R, l, g0 = random_layouts(n_layouts)
     points = n_layouts * (n_theta // 3)
-    results = {"machine": platform.machine(), "processor": platform.processor(), "cpu_count": os.cpu_count(),
-               "jax": jax.__version__, "backend": jax.default_backend(), "devices": len(jax.devices()),
-               "n_layouts": n_layouts, "n_theta": n_theta, "angles_solved_per_layout": n_theta // 3, "variants": {}}
+    results = {
+        "machine": platform.machine(),
+        "processor": platform.processor(),
+        "cpu_count": os.cpu_count(),
+        "jax": jax.__version__,
+        "backend": jax.default_backend(),
+        "devices": len(jax.devices()),
+        "n_layouts": n_layouts,
+        "n_theta": n_theta,
+        "angles_solved_per_layout": n_theta // 3,
+        "variants": {},
+    }
 
     def layouts(dtype, R=R, l=l, g0=g0):
         return tj.Layout(*(np.asarray(a, dtype) for a in (R, l, g0)))
@@ -148,7 +172,7 @@ def run(n_layouts=20000, n_theta=360, fsolve_layouts=20, repeats=3, gradient_lay
             batch = layouts(dtype)
             holder = {}
 
-            def call():
+            def call(holder=holder, batch=batch, fidelity=fidelity):
                 holder["r"] = tj.sweep(batch, n_theta=n_theta, fidelity=fidelity, outputs=COMPARED)
 
             seconds = _best_time(call, repeats)
@@ -156,15 +180,21 @@ def run(n_layouts=20000, n_theta=360, fsolve_layouts=20, repeats=3, gradient_lay
             results["variants"][name] = {
                 "seconds": seconds,
                 "points_per_s": points / seconds,
-                "errors_vs_newton_float64": {k: _relative_error(holder["r"][k].astype(float), reference[k]) for k in COMPARED},
+                "errors_vs_newton_float64": {
+                    k: _relative_error(holder["r"][k].astype(float), reference[k]) for k in COMPARED
+                },
             }
 
     holder = {}
-    numpy_seconds = _best_time(lambda: holder.update(r=numpy_newton_metrics(R, l, g0, n_theta)), repeats)
+    numpy_seconds = _best_time(
+        lambda: holder.update(r=numpy_newton_metrics(R, l, g0, n_theta)), repeats
+    )
     results["numpy_newton"] = {
         "seconds": numpy_seconds,
         "points_per_s": points / numpy_seconds,
-        "errors_vs_newton_float64": {k: _relative_error(holder["r"][k], reference[k]) for k in COMPARED},
+        "errors_vs_newton_float64": {
+            k: _relative_error(holder["r"][k], reference[k]) for k in COMPARED
+        },
     }
     sub = slice(0, fsolve_layouts)
     start = time.perf_counter()
@@ -175,9 +205,13 @@ def run(n_layouts=20000, n_theta=360, fsolve_layouts=20, repeats=3, gradient_lay
         "layouts": fsolve_layouts,
         "seconds": fsolve_seconds,
         "points_per_s": fsolve_points / fsolve_seconds,
-        "errors_vs_newton_float64": {k: _relative_error(fs[k], reference[k][sub]) for k in COMPARED},
+        "errors_vs_newton_float64": {
+            k: _relative_error(fs[k], reference[k][sub]) for k in COMPARED
+        },
     }
-    results["fsolve_loop"]["max_abs_irregularity_difference"] = float(np.max(np.abs(fs["irregularity"] - reference["irregularity"][sub])))
+    results["fsolve_loop"]["max_abs_irregularity_difference"] = float(
+        np.max(np.abs(fs["irregularity"] - reference["irregularity"][sub]))
+    )
 
     # Gradient of the batch's summed irregularity w.r.t. every layout field, against the forward pass.
     batch = layouts(np.float64, R[:gradient_layouts], l[:gradient_layouts], g0[:gradient_layouts])
@@ -186,7 +220,12 @@ def run(n_layouts=20000, n_theta=360, fsolve_layouts=20, repeats=3, gradient_lay
     gradient = jax.jit(jax.grad(lambda b: jnp.sum(jax.vmap(irregularity)(b))))
     t_forward = _best_time(lambda: jax.block_until_ready(forward(batch)), repeats)
     t_gradient = _best_time(lambda: jax.block_until_ready(gradient(batch)), repeats)
-    results["gradient_to_forward"] = {"layouts": gradient_layouts, "forward_s": t_forward, "gradient_s": t_gradient, "ratio": t_gradient / t_forward}
+    results["gradient_to_forward"] = {
+        "layouts": gradient_layouts,
+        "forward_s": t_forward,
+        "gradient_s": t_gradient,
+        "ratio": t_gradient / t_forward,
+    }
     return results
 
 
@@ -202,9 +241,16 @@ def memory_of_sweep(n_layouts, n_theta=360):
         "after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss;"
         "print(before / 1024, after / 1024)"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout.split()
     before, after = float(out[0]), float(out[1])
-    return {"layouts": n_layouts, "peak_rss_before_mb": before, "peak_rss_after_mb": after, "added_mb": after - before}
+    return {
+        "layouts": n_layouts,
+        "peak_rss_before_mb": before,
+        "peak_rss_after_mb": after,
+        "added_mb": after - before,
+    }
 
 
 def report(results):
@@ -215,7 +261,10 @@ def report(results):
     ]
     numpy_rate = results["numpy_newton"]["points_per_s"]
     fsolve_rate = results["fsolve_loop"]["points_per_s"]
-    rows = list(results["variants"].items()) + [("numpy Newton (peer)", results["numpy_newton"]), (f"fsolve loop ({results['fsolve_loop']['layouts']} layouts)", results["fsolve_loop"])]
+    rows = list(results["variants"].items()) + [
+        ("numpy Newton (peer)", results["numpy_newton"]),
+        (f"fsolve loop ({results['fsolve_loop']['layouts']} layouts)", results["fsolve_loop"]),
+    ]
     for name, r in rows:
         e = r["errors_vs_newton_float64"]
         lines.append(
@@ -223,26 +272,55 @@ def report(results):
             f"{e['delta_pp']:>13.1e} {e['irregularity']:>9.1e} {e['gamma_pp']:>13.1e}"
         )
     g = results["gradient_to_forward"]
-    lines.append(f"gradient (R, l, γ0) / forward cost, newton float64, {g['layouts']} layouts: {g['ratio']:.2f}")
+    lines.append(
+        f"gradient (R, l, γ0) / forward cost, newton float64, {g['layouts']} layouts: {g['ratio']:.2f}"
+    )
     if "memory" in results:
         m = results["memory"]
-        lines.append(f"a {m['layouts']}-layout sweep added {m['added_mb']:.0f} MB to the peak resident memory")
+        lines.append(
+            f"a {m['layouts']}-layout sweep added {m['added_mb']:.0f} MB to the peak resident memory"
+        )
     lines.append("errors: largest relative difference from newton/float64 over the layouts")
     return "\n".join(lines)
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog="python -m tripodjax.bench", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--layouts", type=int, default=20000, help="layouts per variant (default 20000)")
-    parser.add_argument("--n-theta", type=int, default=360, help="angles per revolution (default 360)")
-    parser.add_argument("--fsolve-layouts", type=int, default=20, help="layouts in the fsolve subsample (default 20)")
-    parser.add_argument("--repeats", type=int, default=3, help="timed repeats, best kept (default 3)")
-    parser.add_argument("--memory", type=int, default=0, metavar="N", help="also measure the peak memory a sweep of N layouts adds")
-    parser.add_argument("--json", default="tripodjax-bench.json", help="where to write the figures (default tripodjax-bench.json)")
+    parser = argparse.ArgumentParser(
+        prog="python -m tripodjax.bench", description=__doc__.split("\n\n")[0]
+    )
+    parser.add_argument(
+        "--layouts", type=int, default=20000, help="layouts per variant (default 20000)"
+    )
+    parser.add_argument(
+        "--n-theta", type=int, default=360, help="angles per revolution (default 360)"
+    )
+    parser.add_argument(
+        "--fsolve-layouts",
+        type=int,
+        default=20,
+        help="layouts in the fsolve subsample (default 20)",
+    )
+    parser.add_argument(
+        "--repeats", type=int, default=3, help="timed repeats, best kept (default 3)"
+    )
+    parser.add_argument(
+        "--memory",
+        type=int,
+        default=0,
+        metavar="N",
+        help="also measure the peak memory a sweep of N layouts adds",
+    )
+    parser.add_argument(
+        "--json",
+        default="tripodjax-bench.json",
+        help="where to write the figures (default tripodjax-bench.json)",
+    )
     args = parser.parse_args(argv)
     import jax
 
-    jax.config.update("jax_enable_x64", True)  # the command's own choice: float64 variants and reference
+    jax.config.update(
+        "jax_enable_x64", True
+    )  # the command's own choice: float64 variants and reference
     results = run(args.layouts, args.n_theta, args.fsolve_layouts, args.repeats)
     if args.memory:
         results["memory"] = memory_of_sweep(args.memory, args.n_theta)

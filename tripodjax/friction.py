@@ -114,7 +114,10 @@ def mu_dyn(theta, gamma, params=GREASE_A, stroke="in"):
         raise ValueError(f"stroke = {stroke!r} is not allowed; allowed: {', '.join(STROKES)}")
     sign = 1.0 if stroke == "in" else -1.0
     g = _degrees(gamma)
-    return sign * (g / 15.0 * (params.C_d1 * params.mu_slp - params.C_d2) * jnp.abs(jnp.sin(theta)) + mu_slip_to_roll(gamma, params))
+    return sign * (
+        g / 15.0 * (params.C_d1 * params.mu_slp - params.C_d2) * jnp.abs(jnp.sin(theta))
+        + mu_slip_to_roll(gamma, params)
+    )
 
 
 CONTACTS = ("line", "elliptical")
@@ -276,7 +279,15 @@ def gaf_from_revolution(layout, sol, rates, torque, params, model, width):
     )
 
 
-def gaf_halfshaft(layout, torque, params=GREASE_A, n_theta=360, model="printed", width=DEFAULT_STROKE_WIDTH, fidelity="newton"):
+def gaf_halfshaft(
+    layout,
+    torque,
+    params=GREASE_A,
+    n_theta=360,
+    model="printed",
+    width=DEFAULT_STROKE_WIDTH,
+    fidelity="newton",
+):
     """GAF of a halfshaft over a revolution, from the instantaneous γ(θ) and roller angles.
 
     The Lee model's roller angle is θ_L,i = ψ_i + 90°: the kinematics measure
@@ -294,7 +305,9 @@ def gaf_halfshaft(layout, torque, params=GREASE_A, n_theta=360, model="printed",
     _check_model(model, width)
     _check_load(torque, layout.R)
     check_fidelity(fidelity)
-    return _gaf_halfshaft(layout, torque, params, width, n_theta=n_theta, model=model, fidelity=fidelity)
+    return _gaf_halfshaft(
+        layout, torque, params, width, n_theta=n_theta, model=model, fidelity=fidelity
+    )
 
 
 @functools.partial(jax.jit, static_argnames=("n_theta", "model", "fidelity"))

@@ -56,11 +56,16 @@ def layout_constants(xp, R, l, gamma0, theta):
     s0, c0 = xp.sin(half0), xp.cos(half0)
     k = R / (2.0 * l)
     return dict(
-        half0=half0, s0=s0, c0=c0, k=k,
+        half0=half0,
+        s0=s0,
+        c0=c0,
+        k=k,
         H=c0 + k * s0,  # −h / (2 l sin(γ0/2)), 2.9.3
         sinc0=_sinc(xp, half0, s0),
-        sin_g0=2.0 * s0 * c0, cos_g0=1.0 - 2.0 * s0**2,
-        sin_15t=xp.sin(1.5 * theta), cos_15t=xp.cos(1.5 * theta),
+        sin_g0=2.0 * s0 * c0,
+        cos_g0=1.0 - 2.0 * s0**2,
+        sin_15t=xp.sin(1.5 * theta),
+        cos_15t=xp.cos(1.5 * theta),
     )
 
 
@@ -151,7 +156,11 @@ def analytic_unknowns(xp, consts, theta):
     sin3, cos3 = xp.sin(3.0 * theta), xp.cos(3.0 * theta)
     delta1 = -first_order_amplitude(consts) * sin3
     one_minus_cos3psi1 = (1.0 - cos3) - 3.0 * delta1 * sin3  # 2 sin²(3ψ1/2), first order in Δ1
-    v = consts["sinc0"] * (k * s0 * one_minus_cos3psi1 - 0.5 * H * delta1**2) / (consts["cos_g0"] + k * consts["sin_g0"])
+    v = (
+        consts["sinc0"]
+        * (k * s0 * one_minus_cos3psi1 - 0.5 * H * delta1**2)
+        / (consts["cos_g0"] + k * consts["sin_g0"])
+    )
     q = s0 + 2.0 * half0 * c0 * v  # sin²(γ/2)/sin(γ0/2), first order in v
     cos_gamma = consts["cos_g0"] - 2.0 * half0 * consts["sin_g0"] * v
     z = -k / H * q * (sin3 - 3.0 * delta1 * cos3) / cos_gamma
@@ -213,12 +222,14 @@ def _implicit_solver(rtol, max_steps):
 
         def system_at_solution(*moving):
             args = list(primals)
-            for i, value in zip(active, moving):
+            for i, value in zip(active, moving, strict=False):
                 args[i] = value
             return scaled_system(jnp, layout_constants(jnp, *args), x[0], x[1])
 
         (_, jacobian), (dg, _) = jax.jvp(
-            system_at_solution, tuple(primals[i] for i in active), tuple(tangents[i] for i in active)
+            system_at_solution,
+            tuple(primals[i] for i in active),
+            tuple(tangents[i] for i in active),
         )
         dx = jnp.stack(newton_step(dg, jacobian))
         no_tangent = [np.zeros(a.shape, jax.dtypes.float0) for a in out[2:]]
@@ -315,8 +326,18 @@ def analytic_halfshaft(layout, theta):
     """
     R, l, gamma0, theta = _working_arrays(layout, theta)
     delta, v = analytic_unknowns(jnp, layout_constants(jnp, R, l, gamma0, theta), theta)
-    residual = jax.lax.stop_gradient(scaled_residual(R, l, gamma0, theta, jnp.stack([delta, v], axis=-1)))
-    return _solution(theta, gamma0, delta, v, residual, jnp.ones(delta.shape, bool), jnp.zeros(delta.shape, jnp.int32))
+    residual = jax.lax.stop_gradient(
+        scaled_residual(R, l, gamma0, theta, jnp.stack([delta, v], axis=-1))
+    )
+    return _solution(
+        theta,
+        gamma0,
+        delta,
+        v,
+        residual,
+        jnp.ones(delta.shape, bool),
+        jnp.zeros(delta.shape, jnp.int32),
+    )
 
 
 def _solution(theta, gamma0, delta, v, residual, converged, iterations):

@@ -24,8 +24,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from tripodjax._checks import check
-from tripodjax._checks import check_non_negative, check_positive, check_shares
+from tripodjax._checks import check, check_non_negative, check_positive, check_shares
 from tripodjax._pytree import pytree_dataclass
 
 YOUNG_MODULUS_STEEL = 208_000.0  # MPa
@@ -215,7 +214,9 @@ class Contact:
     b: jax.Array
 
 
-def roller_contact(load, d, *, conformity, young_modulus=YOUNG_MODULUS_STEEL, poisson=POISSON_STEEL):
+def roller_contact(
+    load, d, *, conformity, young_modulus=YOUNG_MODULUS_STEEL, poisson=POISSON_STEEL
+):
     """Contact pressure and ellipse semi-axes for a roller load Q [N] on a roller of diameter d [mm].
 
     a = μ k, b = ν k with k = (3 Q (1 − ν_P²) / (E Σρ))^(1/3), Σρ = dΣρ / d, and
@@ -235,12 +236,20 @@ def roller_contact(load, d, *, conformity, young_modulus=YOUNG_MODULUS_STEEL, po
 # --------------------------------------------------------------------------- capacities and sizing
 
 
-def torque_at_pressure(pressure, d, R, *, C_p, C_s, n_rollers=3, pressure_angle=math.pi / 2, helix_angle=0.0, gamma=0.0):
+def torque_at_pressure(
+    pressure, d, R, *, C_p, C_s, n_rollers=3, pressure_angle=math.pi / 2, helix_angle=0.0, gamma=0.0
+):
     """M(p) = ½(1 + cos γ) n_R (p/(C_s C_p))³ d² R sin ε cos ζ, returned in N·m."""
     load_factor = (pressure / (C_s * C_p)) ** 3
     torque_nmm = (
-        0.5 * (1.0 + jnp.cos(gamma)) * n_rollers * load_factor * d**2 * R
-        * jnp.sin(pressure_angle) * jnp.cos(helix_angle)
+        0.5
+        * (1.0 + jnp.cos(gamma))
+        * n_rollers
+        * load_factor
+        * d**2
+        * R
+        * jnp.sin(pressure_angle)
+        * jnp.cos(helix_angle)
     )
     return torque_nmm / 1000.0
 
@@ -265,7 +274,20 @@ class Capacities:
     mu_nu: jax.Array
 
 
-def capacities(d, R, *, conformity, P_s, P_d, P_sd, C_s, n_rollers=3, pressure_angle=math.pi / 2, helix_angle=0.0, gamma=0.0):
+def capacities(
+    d,
+    R,
+    *,
+    conformity,
+    P_s,
+    P_d,
+    P_sd,
+    C_s,
+    n_rollers=3,
+    pressure_angle=math.pi / 2,
+    helix_angle=0.0,
+    gamma=0.0,
+):
     """Static and dynamic torque capacities of a joint with roller diameter d and PCR R [mm].
 
     Args:
@@ -283,7 +305,13 @@ def capacities(d, R, *, conformity, P_s, P_d, P_sd, C_s, n_rollers=3, pressure_a
     geometry = contact_geometry(conformity)
     product = mu_nu(geometry.cos_tau)
     C_p = HERTZ_STEEL / product * geometry.d_sum_rho ** (2.0 / 3.0)
-    common = dict(C_p=C_p, C_s=C_s, n_rollers=n_rollers, pressure_angle=pressure_angle, helix_angle=helix_angle)
+    common = dict(
+        C_p=C_p,
+        C_s=C_s,
+        n_rollers=n_rollers,
+        pressure_angle=pressure_angle,
+        helix_angle=helix_angle,
+    )
     return Capacities(
         M_s=torque_at_pressure(P_s, d, R, gamma=0.0, **common),
         M_d=torque_at_pressure(P_d, d, R, gamma=gamma, **common),
@@ -296,7 +324,18 @@ def capacities(d, R, *, conformity, P_s, P_d, P_sd, C_s, n_rollers=3, pressure_a
 SIZING_RULES = ("consistent", "workbook")
 
 
-def min_roller_diameter(M_max, *, R_over_d, conformity, P_s, C_s, n_rollers=3, pressure_angle=math.pi / 2, helix_angle=0.0, rule="consistent"):
+def min_roller_diameter(
+    M_max,
+    *,
+    R_over_d,
+    conformity,
+    P_s,
+    C_s,
+    n_rollers=3,
+    pressure_angle=math.pi / 2,
+    helix_angle=0.0,
+    rule="consistent",
+):
     """Smallest roller diameter and pitch-circle radius [mm] for a maximum torque M_max [N·m].
 
     ``rule="consistent"``: the static capacity equals M_max,
@@ -338,7 +377,9 @@ def life_hours(M_d, torque, speed, share):
     torque or speed does no damage.
     """
     M_d = jnp.asarray(M_d)[..., None]
-    torque, speed, share = (jnp.atleast_1d(jnp.asarray(x, M_d.dtype)) for x in (torque, speed, share))
+    torque, speed, share = (
+        jnp.atleast_1d(jnp.asarray(x, M_d.dtype)) for x in (torque, speed, share)
+    )
     damage_rate = share * speed * (torque / M_d) ** 3 / RATING_HOURS_RPM
     return 1.0 / jnp.sum(damage_rate, axis=-1)
 
@@ -379,7 +420,12 @@ class WorkingConditions:
     share: jax.Array
 
     def __post_init__(self):
-        check("WorkingConditions.angle", self.angle, lambda a: np.isfinite(a) & (a >= 0) & (a < math.pi / 2), "0 ≤ angle < π/2 rad")
+        check(
+            "WorkingConditions.angle",
+            self.angle,
+            lambda a: np.isfinite(a) & (a >= 0) & (a < math.pi / 2),
+            "0 ≤ angle < π/2 rad",
+        )
         check_shares("WorkingConditions.share", self.share)
 
 
@@ -400,7 +446,19 @@ class Life:
     M_d_per_condition: jax.Array
 
 
-def joint_life(d, R, spectrum, conditions, *, conformity, P_d, C_s, n_rollers=3, pressure_angle=math.pi / 2, helix_angle=0.0):
+def joint_life(
+    d,
+    R,
+    spectrum,
+    conditions,
+    *,
+    conformity,
+    P_d,
+    C_s,
+    n_rollers=3,
+    pressure_angle=math.pi / 2,
+    helix_angle=0.0,
+):
     """Palmgren–Miner life of a joint in hours and km (4.2.1–4.2.3).
 
     For each working condition j the capacity M_d(γ_j) gives the spectrum's
@@ -411,10 +469,19 @@ def joint_life(d, R, spectrum, conditions, *, conformity, P_d, C_s, n_rollers=3,
     check_positive(d=d, R=R, P_d=P_d, C_s=C_s)
     C_p = conformity_coefficient(conformity)
     M_d = torque_at_pressure(
-        P_d, d, R, C_p=C_p, C_s=C_s, n_rollers=n_rollers, pressure_angle=pressure_angle,
-        helix_angle=helix_angle, gamma=jnp.asarray(conditions.angle),
+        P_d,
+        d,
+        R,
+        C_p=C_p,
+        C_s=C_s,
+        n_rollers=n_rollers,
+        pressure_angle=pressure_angle,
+        helix_angle=helix_angle,
+        gamma=jnp.asarray(conditions.angle),
     )
     per_condition = life_hours(M_d, spectrum.torque, spectrum.speed, spectrum.share)
     hours = 1.0 / jnp.sum(jnp.asarray(conditions.share) / per_condition)
     mean_speed = jnp.sum(jnp.asarray(spectrum.share) * jnp.asarray(spectrum.vehicle_speed))
-    return Life(hours=hours, km=hours * mean_speed, hours_per_condition=per_condition, M_d_per_condition=M_d)
+    return Life(
+        hours=hours, km=hours * mean_speed, hours_per_condition=per_condition, M_d_per_condition=M_d
+    )

@@ -79,7 +79,9 @@ def _ptp(x, axis=None):
 
 def check_fidelity(fidelity):
     if fidelity not in FIDELITIES:
-        raise ValueError(f"fidelity = {fidelity!r} is not allowed; allowed: {', '.join(FIDELITIES)}")
+        raise ValueError(
+            f"fidelity = {fidelity!r} is not allowed; allowed: {', '.join(FIDELITIES)}"
+        )
 
 
 def revolution(layout, n_theta, fidelity, *, with_rates, rtol=None, max_steps=DEFAULT_MAX_STEPS):
@@ -112,8 +114,12 @@ _METRICS = {
     "gamma_pp": lambda R, sol, rates: _ptp(sol.gamma),
     "gamma_max": lambda R, sol, rates: jnp.max(sol.gamma),
     "ecc_max": lambda R, sol, rates: jnp.max(joint.eccentricity(R, sol.gamma)),
-    "roller_stroke": lambda R, sol, rates: _ptp(joint.roller_radial_distance(R, sol.gamma, sol.psi)),
-    "roller_radial_max": lambda R, sol, rates: jnp.max(joint.roller_radial_distance(R, sol.gamma, sol.psi)),
+    "roller_stroke": lambda R, sol, rates: _ptp(
+        joint.roller_radial_distance(R, sol.gamma, sol.psi)
+    ),
+    "roller_radial_max": lambda R, sol, rates: jnp.max(
+        joint.roller_radial_distance(R, sol.gamma, sol.psi)
+    ),
     "spider_orbit_x": lambda R, sol, rates: _ptp(_spider(R, sol)[0]),
     "spider_orbit_y": lambda R, sol, rates: _ptp(_spider(R, sol)[1]),
     "spider_orbit_z": lambda R, sol, rates: _ptp(_spider(R, sol)[2]),
@@ -130,7 +136,9 @@ def metrics_from(layout, sol, rates, names):
 
 
 @functools.partial(jax.jit, static_argnames=("n_theta", "fidelity", "max_steps"))
-def kinematic_metrics(layout, n_theta=360, fidelity="newton", *, rtol=None, max_steps=DEFAULT_MAX_STEPS):
+def kinematic_metrics(
+    layout, n_theta=360, fidelity="newton", *, rtol=None, max_steps=DEFAULT_MAX_STEPS
+):
     """Kinematic metrics of a halfshaft layout over one revolution.
 
     Args:
@@ -150,5 +158,9 @@ def kinematic_metrics(layout, n_theta=360, fidelity="newton", *, rtol=None, max_
         ``max_steps`` are static). Every float field is differentiable
         (``jax.grad``, ``jax.jacfwd``) w.r.t. every Layout field.
     """
-    sol, rates = revolution(layout, n_theta, fidelity, with_rates=True, rtol=rtol, max_steps=max_steps)
-    return KinematicMetrics(**metrics_from(layout, sol, rates, KinematicMetrics.__dataclass_fields__))
+    sol, rates = revolution(
+        layout, n_theta, fidelity, with_rates=True, rtol=rtol, max_steps=max_steps
+    )
+    return KinematicMetrics(
+        **metrics_from(layout, sol, rates, KinematicMetrics.__dataclass_fields__)
+    )

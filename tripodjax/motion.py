@@ -60,7 +60,7 @@ def _motion(positions, theta, theta_dot, theta_ddot):
 
     (p, dp), (_, d2p) = jax.jvp(first_derivative, (theta,), (jnp.ones_like(theta),))
     fields = []
-    for position, slope, curvature, extra_axes in zip(p, dp, d2p, (1, 2)):
+    for position, slope, curvature, extra_axes in zip(p, dp, d2p, (1, 2), strict=False):
         w = theta_dot.reshape(theta_dot.shape + (1,) * extra_axes)
         alpha = theta_ddot.reshape(theta_ddot.shape + (1,) * extra_axes)
         fields += [position, slope * w, curvature * w**2 + slope * alpha]

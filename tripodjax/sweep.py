@@ -20,7 +20,14 @@ import numpy as np
 from tripodjax._checks import concrete
 from tripodjax.friction import DEFAULT_STROKE_WIDTH, GAF_MODELS, GREASE_A, gaf_from_revolution
 from tripodjax.halfshaft import DEFAULT_MAX_STEPS
-from tripodjax.kinematics import NEEDS_RATES, KinematicMetrics, check_fidelity, metrics_from, period_grid, revolution
+from tripodjax.kinematics import (
+    NEEDS_RATES,
+    KinematicMetrics,
+    check_fidelity,
+    metrics_from,
+    period_grid,
+    revolution,
+)
 from tripodjax.layout import MAX_GAMMA0, MAX_R_OVER_L, Layout
 
 KINEMATIC_OUTPUTS = tuple(KinematicMetrics.__dataclass_fields__)
@@ -46,7 +53,9 @@ class _Progress:
         elapsed = time.perf_counter() - self.start
         rate = done / elapsed if elapsed > 0 else 0.0
         bar = "#" * int(30 * done / self.total)
-        sys.stderr.write(f"\rsweep [{bar:<30}] {done}/{self.total} layouts, {elapsed:.1f} s, {rate:.0f} layouts/s")
+        sys.stderr.write(
+            f"\rsweep [{bar:<30}] {done}/{self.total} layouts, {elapsed:.1f} s, {rate:.0f} layouts/s"
+        )
         if done >= self.total:
             sys.stderr.write("\n")
         sys.stderr.flush()
@@ -56,18 +65,25 @@ def _check_layouts(layouts):
     fields = {name: getattr(layouts, name) for name in ("R", "l", "gamma0")}
     shapes = {name: np.shape(value) for name, value in fields.items()}
     if any(len(shape) != 1 for shape in shapes.values()) or len(set(shapes.values())) != 1:
-        raise ValueError(f"sweep needs a Layout whose fields are 1-D arrays of one length; got shapes {shapes}")
+        raise ValueError(
+            f"sweep needs a Layout whose fields are 1-D arrays of one length; got shapes {shapes}"
+        )
     arrays = {name: concrete(value) for name, value in fields.items()}
     rules = {
         "R": (lambda a: np.isfinite(a) & (a > 0), "R > 0 mm"),
         "l": (lambda a: np.isfinite(a) & (a > 0), "l > 0 mm"),
-        "gamma0": (lambda a: np.isfinite(a) & (a >= 0) & (a <= MAX_GAMMA0), "0 ≤ gamma0 ≤ π/4 rad (45°)"),
+        "gamma0": (
+            lambda a: np.isfinite(a) & (a >= 0) & (a <= MAX_GAMMA0),
+            "0 ≤ gamma0 ≤ π/4 rad (45°)",
+        ),
     }
     for name, (ok, allowed) in rules.items():
         bad = np.flatnonzero(~ok(arrays[name]))
         if bad.size:
             i = int(bad[0])
-            raise ValueError(f"layouts.{name}[{i}] = {float(arrays[name][i])!r} is outside the allowed range: {allowed}")
+            raise ValueError(
+                f"layouts.{name}[{i}] = {float(arrays[name][i])!r} is outside the allowed range: {allowed}"
+            )
     bad = np.flatnonzero(arrays["R"] / arrays["l"] > MAX_R_OVER_L)
     if bad.size:
         i = int(bad[0])
@@ -81,20 +97,40 @@ def _check_outputs(outputs, torque):
     outputs = tuple(outputs)
     unknown = [name for name in outputs if name not in OUTPUTS]
     if unknown or not outputs:
-        raise ValueError(f"outputs {unknown or outputs!r} not allowed; allowed: {', '.join(OUTPUTS)}")
+        raise ValueError(
+            f"outputs {unknown or outputs!r} not allowed; allowed: {', '.join(OUTPUTS)}"
+        )
     if any(name in GAF_OUTPUTS for name in outputs) and torque is None:
-        raise ValueError(f"outputs {', '.join(n for n in outputs if n in GAF_OUTPUTS)} need a torque [N·m]")
+        raise ValueError(
+            f"outputs {', '.join(n for n in outputs if n in GAF_OUTPUTS)} need a torque [N·m]"
+        )
     return outputs
 
 
-@functools.partial(jax.jit, static_argnames=("n_theta", "fidelity", "outputs", "gaf_model", "max_steps"))
-def _evaluate_chunk(layouts, torque, friction_params, width, rtol, *, n_theta, fidelity, outputs, gaf_model, max_steps):
+@functools.partial(
+    jax.jit, static_argnames=("n_theta", "fidelity", "outputs", "gaf_model", "max_steps")
+)
+def _evaluate_chunk(
+    layouts,
+    torque,
+    friction_params,
+    width,
+    rtol,
+    *,
+    n_theta,
+    fidelity,
+    outputs,
+    gaf_model,
+    max_steps,
+):
     kinematic = tuple(name for name in outputs if name in KINEMATIC_OUTPUTS)
     gaf_names = tuple(name for name in outputs if name in GAF_OUTPUTS)
     with_rates = bool(gaf_names) or any(name in NEEDS_RATES for name in kinematic)
 
     def one(layout):
-        sol, rates = revolution(layout, n_theta, fidelity, with_rates=with_rates, rtol=rtol, max_steps=max_steps)
+        sol, rates = revolution(
+            layout, n_theta, fidelity, with_rates=with_rates, rtol=rtol, max_steps=max_steps
+        )
         result = metrics_from(layout, sol, rates, kinematic)
         if gaf_names:
             g = gaf_from_revolution(layout, sol, rates, torque, friction_params, gaf_model, width)
@@ -152,7 +188,9 @@ def sweep(
     check_fidelity(fidelity)
     period_grid(n_theta, jnp.float32)  # checks n_theta
     if gaf_model not in GAF_MODELS:
-        raise ValueError(f"gaf_model = {gaf_model!r} is not allowed; allowed: {', '.join(GAF_MODELS)}")
+        raise ValueError(
+            f"gaf_model = {gaf_model!r} is not allowed; allowed: {', '.join(GAF_MODELS)}"
+        )
     devices = list(devices) if devices is not None else jax.devices()
     mesh = jax.sharding.Mesh(np.array(devices), ("layouts",))
     sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("layouts"))
@@ -163,7 +201,13 @@ def sweep(
     fields = [np.asarray(getattr(layouts, name)) for name in ("R", "l", "gamma0")]
     n_chunks = math.ceil(n / chunk)
     bar = _Progress(n, sys.stderr.isatty() and n_chunks > 1 if progress is None else progress)
-    static = dict(n_theta=n_theta, fidelity=fidelity, outputs=outputs, gaf_model=gaf_model, max_steps=max_steps)
+    static = dict(
+        n_theta=n_theta,
+        fidelity=fidelity,
+        outputs=outputs,
+        gaf_model=gaf_model,
+        max_steps=max_steps,
+    )
     pieces = {name: [] for name in outputs}
     pending = None  # one chunk in flight while the next is dispatched (JAX runs asynchronously)
 
@@ -178,7 +222,11 @@ def sweep(
         # Pad the last chunk with copies of its last layout: one compiled shape throughout.
         index = np.minimum(np.arange(start, start + chunk), stop - 1)
         part = Layout(*(jax.device_put(f[index], sharding) for f in fields))
-        dispatched = (_evaluate_chunk(part, torque, friction_params, gaf_width, rtol, **static), stop - start, stop)
+        dispatched = (
+            _evaluate_chunk(part, torque, friction_params, gaf_width, rtol, **static),
+            stop - start,
+            stop,
+        )
         if pending is not None:
             collect(pending)
         pending = dispatched
