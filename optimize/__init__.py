@@ -6,9 +6,9 @@
 - :func:`solve_family`, :func:`pareto_front` — many scenarios at once through vmap.
 """
 
-from optimize.problem import evaluate
-from optimize.solver import Result, pareto_front, solve, solve_family
-from optimize.spec import DEFAULT_SPEC_TOML, Spec, SpecError, load_spec, parse_spec
+from tripodjax.optimize.problem import evaluate
+from tripodjax.optimize.solver import Result, pareto_front, solve, solve_family
+from tripodjax.optimize.spec import DEFAULT_SPEC_TOML, Spec, SpecError, load_spec, parse_spec
 
 __all__ = [
     "DEFAULT_SPEC_TOML",

@@ -57,9 +57,9 @@ def main(argv=None):
         os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "tripodjax", "jax"
     )
     jax.config.update("jax_compilation_cache_dir", cache)
-    from optimize import report
-    from optimize.solver import pareto_front
-    from optimize.spec import SpecError, load_spec
+    from tripodjax.optimize import report
+    from tripodjax.optimize.solver import pareto_front
+    from tripodjax.optimize.spec import SpecError, load_spec
 
     try:
         spec = load_spec(args.spec)

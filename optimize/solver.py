@@ -29,7 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from optimize.problem import (
+from tripodjax.optimize.problem import (
     VARIABLES,
     bounds,
     compiled,

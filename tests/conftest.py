@@ -5,8 +5,19 @@ passing float32 inputs or inside ``jax.enable_x64(False)``); the library
 itself never changes JAX's configuration.
 """
 
+import os
+import sys
+
 import jax
 import pytest
+
+# Test the installed package, not the source folders: `python -m pytest` puts the repository
+# root first on sys.path, where tripodjax/ lacks the optimiser (installed as tripodjax.optimize
+# from the top-level optimize/ folder).
+_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path[:] = [p for p in sys.path if os.path.abspath(p or os.curdir) != _ROOT]
+for _name in [m for m in sys.modules if m == "tripodjax" or m.startswith("tripodjax.")]:
+    del sys.modules[_name]
 
 jax.config.update("jax_enable_x64", True)
 

@@ -12,8 +12,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-import optimize
-from optimize.problem import compiled, scenario
+from tripodjax import optimize
+from tripodjax.optimize.problem import compiled, scenario
 from tripodjax import Layout, friction, hertz, kinematic_metrics
 
 SPEC = optimize.load_spec()
@@ -23,7 +23,7 @@ def run_cli(*args, cwd=None):
     command = [
         sys.executable,
         "-c",
-        "import sys; from optimize.cli import main; sys.exit(main())",
+        "import sys; from tripodjax.optimize.cli import main; sys.exit(main())",
         *args,
     ]
     # The command caches compiled code; keep the tests' cache out of the user's home.

@@ -47,3 +47,12 @@ def check_shares(name, share):
     total = float(np.sum(array))
     if abs(total - 1.0) > 1e-6:
         raise ValueError(f"{name} sums to {total:.6g}; the shares must sum to 1")
+
+
+def check_choice(name, value, allowed):
+    """Raise ValueError unless ``value`` is one of ``allowed`` (the one rule for every mode argument)."""
+    if not isinstance(value, str) or value not in allowed:
+        raise ValueError(
+            f"{name} = {value!r} is not allowed; allowed: {', '.join(repr(a) for a in allowed)}"
+        )
+    return value

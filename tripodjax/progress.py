@@ -1,0 +1,76 @@
+"""Progress meters for long work (sweeps, the optimiser), pluggable in the manner of Diffrax.
+
+Every long-running function takes ``progress=``: ``None`` (the default: a bar
+when standard error is a terminal), ``True``/``False``, or a :class:`ProgressMeter`
+instance. :class:`TqdmProgressMeter` uses ``tqdm.auto``, so a notebook gets a
+notebook bar; :class:`NoProgressMeter` prints nothing.
+"""
+
+import sys
+
+
+class ProgressMeter:
+    """The interface: ``start`` returns a handle with ``update(n, **postfix)`` and ``close()``."""
+
+    def start(self, total: int, desc: str, unit: str = "it"):
+        raise NotImplementedError
+
+
+class _Silent:
+    def update(self, n=1, **postfix):
+        pass
+
+    def close(self):
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+class NoProgressMeter(ProgressMeter):
+    """Shows nothing."""
+
+    def start(self, total, desc, unit="it"):
+        return _Silent()
+
+
+class _TqdmHandle(_Silent):
+    def __init__(self, bar):
+        self.bar = bar
+
+    def update(self, n=1, **postfix):
+        if postfix:
+            self.bar.set_postfix(postfix, refresh=False)
+        self.bar.update(n)
+
+    def close(self):
+        self.bar.close()
+
+
+class TqdmProgressMeter(ProgressMeter):
+    """A ``tqdm.auto`` bar on standard error (a widget in a notebook), with rate and ETA."""
+
+    def start(self, total, desc, unit="it"):
+        from tqdm.auto import tqdm
+
+        return _TqdmHandle(
+            tqdm(
+                total=total, desc=desc, unit=unit, file=sys.stderr, dynamic_ncols=True, leave=False
+            )
+        )
+
+
+def resolve(progress) -> ProgressMeter:
+    """The meter for a ``progress=`` argument (None: a bar only when stderr is a terminal)."""
+    if isinstance(progress, ProgressMeter):
+        return progress
+    if progress is None:
+        progress = sys.stderr.isatty()
+    if not isinstance(progress, bool):
+        raise TypeError(
+            f"progress = {progress!r} is not allowed; allowed: None, True, False or a ProgressMeter"
+        )
+    return TqdmProgressMeter() if progress else NoProgressMeter()
