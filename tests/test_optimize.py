@@ -12,9 +12,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from tripodjax import optimize
+from tripodjax import Layout, friction, hertz, kinematic_metrics, optimize
 from tripodjax.optimize.problem import compiled, scenario
-from tripodjax import Layout, friction, hertz, kinematic_metrics
 
 SPEC = optimize.load_spec()
 
