@@ -18,6 +18,8 @@ def test_bench_writes_its_figures(tmp_path):
             "1",
             "--repeats",
             "1",
+            "--domain-layouts",
+            "64",
             "--json",
             str(out),
         ],
@@ -28,21 +30,26 @@ def test_bench_writes_its_figures(tmp_path):
     assert result.returncode == 0, result.stderr
     figures = json.loads(out.read_text())
     assert set(figures["variants"]) == {
-        "newton/float64",
-        "newton/float32",
-        "analytic/float64",
-        "analytic/float32",
+        f"{solver}/{dtype}"
+        for solver in ("newton", "analytic", "closed_form")
+        for dtype in ("float64", "float32")
     }
     for entry in [*figures["variants"].values(), figures["numpy_newton"], figures["fsolve_loop"]]:
         assert entry["points_per_s"] > 0 and set(entry["errors_vs_newton_float64"]) == {
             "delta_pp",
             "irregularity",
             "gamma_pp",
+            "ecc_max",
         }
     # Accuracy is checked (timings are not): the peers and float64 Newton agree; the analytic level is within 2 %.
     assert figures["numpy_newton"]["errors_vs_newton_float64"]["irregularity"] < 1e-10
     assert figures["fsolve_loop"]["errors_vs_newton_float64"]["irregularity"] < 1e-6
+    analytic = figures["variants"]["analytic/float64"]
+    assert analytic["errors_vs_newton_float64"]["irregularity"] < 0.01
+    assert analytic["domain_errors_vs_newton_float64"]["gamma_pp"] < 0.05
+    assert analytic["domain_max_error_estimate"] < 0.01
     assert (
-        figures["variants"]["analytic/float64"]["errors_vs_newton_float64"]["irregularity"] < 0.02
+        "× newton" in result.stdout
+        and "× NumPy" in result.stdout
+        and "gradient (R, l, γ0) / forward cost" in result.stdout
     )
-    assert "× NumPy" in result.stdout and "gradient (R, l, γ0) / forward cost" in result.stdout

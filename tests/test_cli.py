@@ -27,4 +27,5 @@ def test_bad_layout_exits_2_with_a_one_line_message():
     result = run("--gamma0", "60")
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1 and "Layout.gamma0" in lines[0] and "45°" in lines[0]
+    # The message names the command's own option (--gamma0, in degrees), not the Layout field.
+    assert len(lines) == 1 and "--gamma0 = 60.0" in lines[0] and "45°" in lines[0]

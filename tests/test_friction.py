@@ -227,7 +227,7 @@ def test_friction_from_trunnion_force_recovers_a_known_coefficient():
         (lambda: friction.gaf(0.0, 0.3, 100.0, 0.0), "R = 0.0 is outside the allowed range: R > 0"),
         (
             lambda: friction.gaf(0.0, 0.3, 100.0, 25.0, model="smooth"),
-            "model = 'smooth' is not allowed; allowed: printed, stroke",
+            "model = 'smooth' is not allowed; allowed: 'printed', 'stroke'",
         ),
         (
             lambda: friction.gaf_halfshaft(seed_case("N"), -1.0),
@@ -235,11 +235,27 @@ def test_friction_from_trunnion_force_recovers_a_known_coefficient():
         ),
         (
             lambda: friction.mu_dyn(0.0, 0.3, stroke="up"),
-            "stroke = 'up' is not allowed; allowed: in, out",
+            "stroke = 'up' is not allowed; allowed: 'in', 'out'",
         ),
         (
             lambda: friction.FrictionParams(mu_slp=-0.1),
             "FrictionParams.mu_slp = -0.1 is outside the allowed range: mu_slp ≥ 0",
+        ),
+        (
+            lambda: friction.FrictionParams(lam=float("nan")),
+            "FrictionParams.lam = nan is outside the allowed range: lam ≥ 0",
+        ),
+        (
+            lambda: friction.FrictionParams(C_s4=float("inf")),
+            "FrictionParams.C_s4 = inf is outside the allowed range",
+        ),
+        (
+            lambda: friction.GREASE_A.replace(C_d2=-1e-3),
+            "FrictionParams.C_d2 = -0.001 is outside the allowed range: C_d2 ≥ 0",
+        ),
+        (
+            lambda: friction.FrictionParams(mu_slp=np.float32(-0.5)),
+            "FrictionParams.mu_slp = -0.5 is outside",
         ),
         (
             lambda: friction.rolling_resistance_hysteresis(0.3, 20.0, 0.1, contact="point"),
@@ -251,3 +267,27 @@ def test_bad_inputs_raise_clear_errors(call, message):
     with pytest.raises(ValueError) as info:
         call()
     assert message in str(info.value)
+
+
+def test_friction_params_accept_traced_values_and_gradients():
+    layout = seed_case("N")
+
+    def rms(lam, mu):
+        params = friction.GREASE_A.replace(lam=lam, mu_slp=mu)
+        return friction.gaf_halfshaft(layout, 800.0, params, 60, "stroke").rms
+
+    grads = jax.jit(jax.grad(rms, argnums=(0, 1)))(0.007, 0.06)
+    assert all(np.isfinite(float(g)) for g in grads)
+    # A gradient w.r.t. the params is a FrictionParams whose entries may be negative.
+    g = jax.grad(lambda p: friction.gaf_halfshaft(layout, 800.0, p, 60).rms)(friction.GREASE_A)
+    assert isinstance(g, friction.FrictionParams)
+
+
+def test_gaf_result_carries_the_kinematic_status():
+    from tripodjax.results import RESULTS
+    from tripodjax.solvers import Newton
+
+    ok = friction.gaf_halfshaft(seed_case("N"), 800.0, n_theta=60)
+    assert int(ok.result) == RESULTS.successful
+    capped = friction.gaf_halfshaft(seed_case("g25"), 800.0, n_theta=60, solver=Newton(max_steps=1))
+    assert int(capped.result) == RESULTS.max_steps_reached

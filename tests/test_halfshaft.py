@@ -6,8 +6,10 @@ import numpy as np
 import pytest
 import reference
 
-from tripodjax import Layout, seed_case, solve_halfshaft
+from tripodjax import Layout, seed_case, solve_halfshaft, solvers
 from tripodjax.halfshaft import scaled_jacobian, scaled_residual
+from tripodjax.results import RESULTS
+from tripodjax.solvers import Analytic, Newton, SolverError
 
 THETA = np.linspace(0.0, 2 * np.pi, 97)
 
@@ -121,11 +123,86 @@ def test_tiny_gamma0_converges_in_float32_and_float64():
 
 
 def test_non_convergence_is_reported_per_point():
-    sol = solve_halfshaft(seed_case("g25"), np.array([0.0, 0.3, 0.5]), max_steps=1)
+    sol = solve_halfshaft(seed_case("g25"), np.array([0.0, 0.3, 0.5]), Newton(max_steps=1))
     # θ = 0 is solved exactly by the first step; the others need more than one.
     np.testing.assert_array_equal(sol.converged, [True, False, False])
+    np.testing.assert_array_equal(
+        sol.result, [RESULTS.successful, RESULTS.max_steps_reached, RESULTS.max_steps_reached]
+    )
     assert np.all(np.asarray(sol.iterations) == 1)
     assert np.all(np.isfinite(sol.residual)) and float(jnp.max(jnp.abs(sol.residual))) > 1e-12
+    with pytest.raises(SolverError, match=r"point \[1\] at θ = 0.3 rad: max_steps_reached"):
+        solve_halfshaft(
+            seed_case("g25"), np.array([0.0, 0.3, 0.5]), Newton(max_steps=1), throw=True
+        )
+
+
+@pytest.mark.parametrize("solver", ["newton", "analytic", "closed_form"])
+def test_nonfinite_input_gives_nan_and_a_nonfinite_code(solver):
+    theta = np.array([0.2, np.nan, np.inf, 0.4])
+    sol = solve_halfshaft(seed_case("N"), theta, solver)
+    np.testing.assert_array_equal(
+        sol.result, [RESULTS.successful, RESULTS.nonfinite, RESULTS.nonfinite, RESULTS.successful]
+    )
+    assert (
+        np.isnan(sol.delta[1])
+        and np.isnan(sol.psi[2])
+        and np.isfinite(np.asarray(sol.delta)[[0, 3]]).all()
+    )
+    assert not bool(sol.converged[1])
+    # Inside jit too, and for a NaN layout field: NaN everywhere, never a plausible number.
+    jitted = jax.jit(lambda g0: solve_halfshaft(Layout(25.0, 500.0, g0), THETA, solver))(jnp.nan)
+    assert np.isnan(jitted.gamma).all() and (np.asarray(jitted.result) == RESULTS.nonfinite).all()
+    with pytest.raises(SolverError, match=r"point \[1\] at θ = nan rad: nonfinite"):
+        solve_halfshaft(seed_case("N"), theta, solver, throw=True)
+
+
+def test_newton_iterations_stay_few_over_the_domain():
+    rng = np.random.default_rng(8)
+    ratio, g0 = rng.uniform(0, 0.2, 60), rng.uniform(0, np.pi / 4, 60)
+    ratio[0], g0[0] = 0.2, np.pi / 4
+    layout = Layout(100.0 * ratio[:, None], 100.0, g0[:, None])
+    for dtype, most in ((np.float64, 5), (np.float32, 3)):
+        theta = np.linspace(0, 2 * np.pi / 3, 40, dtype=dtype)
+        lay = Layout(*(np.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0)))
+        sol = solve_halfshaft(lay, theta)
+        assert (np.asarray(sol.result) == RESULTS.successful).all()
+        assert int(np.max(sol.iterations)) <= most
+
+
+@pytest.mark.parametrize(
+    "make, error, message",
+    [
+        (lambda: Newton(rtol=-1.0), ValueError, "rtol = -1.0 is outside the allowed range"),
+        (lambda: Newton(rtol=0.0), ValueError, "0 < rtol < 1"),
+        (lambda: Newton(rtol="tight"), TypeError, "rtol = 'tight' is not allowed"),
+        (lambda: Newton(max_steps=-5), ValueError, "max_steps = -5 is outside the allowed range"),
+        (lambda: Newton(max_steps=0), ValueError, "1 ≤ max_steps ≤ 1000"),
+        (lambda: Newton(max_steps=2.5), TypeError, "max_steps = 2.5 is not allowed"),
+        (lambda: Newton(max_steps=True), TypeError, "max_steps = True is not allowed"),
+        (lambda: Analytic(corrections=-1), ValueError, "corrections = -1 is outside"),
+        (lambda: Analytic(validity=0.0), ValueError, "validity = 0.0 is outside"),
+        (lambda: solvers.resolve("exact"), ValueError, "solver = 'exact' is not allowed"),
+        (lambda: solvers.resolve(3), TypeError, "solver = 3 is not allowed"),
+    ],
+)
+def test_solver_options_are_validated_at_construction(make, error, message):
+    with pytest.raises(error) as info:
+        make()
+    assert message in str(info.value)
+
+
+def test_solver_objects_are_hashable_and_shorthands_resolve_to_defaults():
+    assert solvers.resolve("newton") == Newton() and hash(Newton(rtol=1e-10)) == hash(
+        Newton(rtol=1e-10)
+    )
+    assert solvers.resolve("analytic") == Analytic()
+    assert solvers.resolve("closed_form") == Analytic(
+        corrections=0, validity=solvers.ClosedForm().validity
+    )
+    a = solve_halfshaft(seed_case("N"), THETA, Newton(rtol=1e-10, max_steps=30))
+    b = solve_halfshaft(seed_case("N"), THETA)
+    np.testing.assert_allclose(a.delta, b.delta, rtol=0, atol=1e-15)
 
 
 def test_converged_residual_is_at_rounding_level_and_steps_are_few():

@@ -62,8 +62,7 @@ def test_limits_of_the_hertz_coefficients():
     ) == pytest.approx(1.0, abs=1e-8)
     near_one = hertz.hertz_coefficients(np.array([0.9999, 0.99999, 0.999999]))
     assert np.all(np.isfinite(near_one.mu_nu)) and np.all(np.diff(near_one.mu_nu) > 0)
-    # The sign of cos τ does not matter (the brief: use its magnitude).
-    assert float(hertz.mu_nu(-0.5)) == float(hertz.mu_nu(0.5))
+    assert np.all(near_one.result == hertz.RESULTS.successful)
 
 
 def test_mu_nu_float32_close_to_float64():
@@ -224,7 +223,7 @@ def test_gradients_match_central_differences():
     [
         (
             lambda: hertz.contact_geometry(1.0),
-            "conformity = 1.0 is outside the allowed range: conformity Ψ > 1",
+            "conformity = 1.0 is outside the allowed range: conformity Ψ ≥ 1.0005",
         ),
         (
             lambda: hertz.capacities(-1.0, 25.0, **WORKBOOK),
@@ -238,7 +237,7 @@ def test_gradients_match_central_differences():
             lambda: hertz.min_roller_diameter(
                 1154.0, R_over_d=0.63, conformity=1.002, P_s=2350.0, C_s=1.35, rule="book"
             ),
-            "rule = 'book' is not allowed; allowed: consistent, workbook",
+            "rule = 'book' is not allowed; allowed: 'consistent', 'workbook'",
         ),
         (
             lambda: hertz.LoadSpectrum(
@@ -247,7 +246,7 @@ def test_gradients_match_central_differences():
                 np.array([50.0, 60.0]),
                 np.array([0.5, 0.5]),
             ),
-            "LoadSpectrum.speed = -5.0 is outside the allowed range: speed ≥ 0 rpm",
+            "LoadSpectrum.speed[1] = -5.0 is outside the allowed range: speed ≥ 0 rpm",
         ),
         (
             lambda: hertz.LoadSpectrum(
@@ -272,6 +271,173 @@ def test_bad_inputs_raise_clear_errors(call, message):
     with pytest.raises(ValueError) as info:
         call()
     assert message in str(info.value)
+
+
+@pytest.mark.parametrize("cos_tau", [1.0, 1.5, -0.5, -1e-300, np.nan, np.inf, -np.inf])
+def test_mu_nu_rejects_cos_tau_outside_zero_one(cos_tau):
+    for f in (hertz.mu_nu, hertz.hertz_coefficients):
+        with pytest.raises(
+            ValueError, match=r"cos_tau.* is outside the allowed range: 0 ≤ cos_tau < 1"
+        ):
+            f(cos_tau)
+    with pytest.raises(ValueError, match=r"cos_tau\[1\]"):
+        hertz.mu_nu(np.array([0.5, cos_tau]))
+
+
+def test_mu_nu_inside_jit_gives_nan_and_a_code_for_bad_cos_tau():
+    bad = np.array([0.5, 1.0, 1.5, -0.5, np.nan, np.inf])
+    c = jax.jit(hertz.hertz_coefficients)(bad)
+    assert np.isfinite(c.mu_nu[0]) and c.result[0] == hertz.RESULTS.successful
+    assert np.all(np.isnan(c.mu_nu[1:])) and np.all(np.isnan(c.kappa[1:]))
+    assert np.all(c.result[1:] == hertz.RESULTS.nonfinite)
+    assert c.result.dtype == jnp.int32
+
+
+def test_kappa_solve_reports_the_iteration_cap(monkeypatch):
+    monkeypatch.setattr(hertz, "_KAPPA_MAX_STEPS", 1)
+    for c in (0.9, 0.999):
+        c = jnp.asarray(c)
+        _, code = hertz._newton_log_kappa(jnp.log1p(-c), c)
+        assert code == hertz.RESULTS.max_steps_reached
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_result_codes_are_successful_on_the_workbook_example(dtype):
+    caps = hertz.capacities(dtype(43.5), dtype(25.55), **WORKBOOK)
+    assert caps.result == hertz.RESULTS.successful
+    contact = hertz.roller_contact(dtype(12000.0), dtype(43.5), conformity=1.002)
+    assert contact.result == hertz.RESULTS.successful
+    spectrum, conditions = spectrum_and_conditions()
+    life = hertz.joint_life(
+        43.5, 25.55, spectrum, conditions, conformity=1.002, P_d=1347.0, C_s=1.2
+    )
+    assert life.result == hertz.RESULTS.successful
+
+
+@pytest.mark.parametrize("n_rollers", [-3, 0])
+def test_capacities_reject_fewer_than_one_roller(n_rollers):
+    with pytest.raises(
+        ValueError, match=rf"n_rollers = {n_rollers} is outside the allowed range: an integer ≥ 1"
+    ):
+        hertz.capacities(43.5, 25.55, n_rollers=n_rollers, **WORKBOOK)
+
+
+@pytest.mark.parametrize("n_rollers", [2.5, 3.0, True, "3", None, [3]])
+def test_capacities_reject_a_non_integer_roller_count(n_rollers):
+    with pytest.raises(TypeError, match="n_rollers = .* is not allowed; allowed: an integer ≥ 1"):
+        hertz.capacities(43.5, 25.55, n_rollers=n_rollers, **WORKBOOK)
+
+
+def test_n_rollers_accepts_python_and_numpy_integers():
+    three = hertz.capacities(43.5, 25.55, **WORKBOOK)
+    for n in (3, np.int32(3), np.int64(3)):
+        assert float(hertz.capacities(43.5, 25.55, n_rollers=n, **WORKBOOK).M_s) == float(three.M_s)
+
+
+@pytest.mark.parametrize("conformity", [1.0 + 1e-15, 1.0004, 1.0, 0.99, np.nan, np.inf])
+def test_conformity_has_a_physical_lower_limit(conformity):
+    kwargs = {**WORKBOOK, "conformity": conformity}
+    with pytest.raises(ValueError, match=r"conformity = .* conformity Ψ ≥ 1.0005"):
+        hertz.capacities(43.5, 25.55, **kwargs)
+    with pytest.raises(ValueError, match=r"conformity Ψ ≥ 1.0005"):
+        hertz.conformity_coefficient(conformity)
+
+
+def test_conformity_limit_itself_is_allowed():
+    assert hertz.MIN_CONFORMITY == 1.0005
+    caps = hertz.capacities(43.5, 25.55, **{**WORKBOOK, "conformity": hertz.MIN_CONFORMITY})
+    assert np.isfinite(float(caps.M_s)) and caps.result == hertz.RESULTS.successful
+
+
+def test_non_finite_inputs_inside_jit_give_nan_and_a_nonfinite_code():
+    def caps(d, R, conformity, P_s):
+        return hertz.capacities(
+            d, R, conformity=conformity, P_s=P_s, P_d=1347.0, P_sd=2005.0, C_s=1.2
+        )
+
+    f = jax.jit(caps)
+    good = f(43.5, 25.55, 1.002, 2350.0)
+    assert good.result == hertz.RESULTS.successful and np.isfinite(float(good.M_s))
+    for args in [
+        (np.nan, 25.55, 1.002, 2350.0),
+        (np.inf, 25.55, 1.002, 2350.0),
+        (43.5, -np.inf, 1.002, 2350.0),
+        (43.5, 25.55, np.inf, 2350.0),
+        (43.5, 25.55, np.nan, 2350.0),
+        (43.5, 25.55, 1.002, np.inf),
+    ]:
+        out = f(*args)
+        assert np.isnan(float(out.M_s)), args
+        assert out.result == hertz.RESULTS.nonfinite, args
+
+    spectrum, conditions = spectrum_and_conditions()
+
+    @jax.jit
+    def life(d, torque0, angle0):
+        s = hertz.LoadSpectrum(
+            jnp.asarray(spectrum.torque).at[0].set(torque0),
+            spectrum.speed,
+            spectrum.vehicle_speed,
+            spectrum.share,
+        )
+        c = hertz.WorkingConditions(
+            jnp.asarray(conditions.angle).at[0].set(angle0), conditions.share
+        )
+        return hertz.joint_life(d, 25.55, s, c, conformity=1.002, P_d=1347.0, C_s=1.2)
+
+    assert life(43.5, 900.0, 0.1).result == hertz.RESULTS.successful
+    for args in [
+        (np.nan, 900.0, 0.1),
+        (43.5, np.inf, 0.1),
+        (43.5, np.nan, 0.1),
+        (43.5, 900.0, np.nan),
+    ]:
+        out = life(*args)
+        assert np.isnan(float(out.km)) and out.result == hertz.RESULTS.nonfinite, args
+
+    torque = jax.jit(lambda p: hertz.torque_at_pressure(p, 43.5, 25.55, C_p=514.6, C_s=1.2))
+    assert np.isnan(float(torque(np.inf))) and np.isnan(float(torque(np.nan)))
+    hours = jax.jit(hertz.life_hours)
+    assert np.isnan(float(hours(1505.0, np.inf, 730.0, 1.0)))
+    assert np.isnan(float(hours(np.nan, 1505.0, 730.0, 1.0)))
+    d_min = jax.jit(
+        lambda m: hertz.min_roller_diameter(
+            m, R_over_d=0.63, conformity=1.002, P_s=2350.0, C_s=1.35
+        )[0]
+    )
+    assert np.isnan(float(d_min(np.inf))) and np.isfinite(float(d_min(1154.0)))
+    contact = jax.jit(lambda q: hertz.roller_contact(q, 43.5, conformity=1.002))(np.inf)
+    assert np.isnan(float(contact.p_max)) and contact.result == hertz.RESULTS.nonfinite
+    K, E = jax.jit(hertz.elliptic_integrals)(jnp.array([np.nan, 1.5, -0.5]))
+    assert np.all(np.isnan(K)) and np.all(np.isnan(E))
+
+
+def test_traced_n_rollers_and_gradients_still_work():
+    def static(d, n):
+        return hertz.capacities(d, 25.55, n_rollers=n, **WORKBOOK).M_s
+
+    g3 = jax.grad(static)(43.5, 3)
+    gj = jax.jit(jax.grad(static))(43.5, 3)
+    assert float(g3) == pytest.approx(float(gj), rel=1e-12)
+    assert float(g3) == pytest.approx(2 * float(static(43.5, 3)) / 43.5, rel=1e-10)  # M ∝ d²
+
+
+def test_spectrum_and_conditions_check_types_and_shapes():
+    with pytest.raises(TypeError, match="LoadSpectrum.torque = None"):
+        hertz.LoadSpectrum(None, [1.0], [1.0], [1.0])
+    with pytest.raises(TypeError, match="LoadSpectrum.speed = 'fast'"):
+        hertz.LoadSpectrum([1.0], "fast", [1.0], [1.0])
+    with pytest.raises(ValueError, match="one shape"):
+        hertz.LoadSpectrum(np.ones(2), np.ones(3), np.ones(2), np.array([0.5, 0.5]))
+    with pytest.raises(ValueError, match=r"WorkingConditions.angle\[0\] = nan"):
+        hertz.WorkingConditions(np.array([np.nan]), np.array([1.0]))
+    with pytest.raises(TypeError, match="allowed: a hertz.LoadSpectrum"):
+        hertz.joint_life(43.5, 25.55, {"torque": 1.0}, None, conformity=1.002, P_d=1347.0, C_s=1.2)
+    # JAX rebuilds them without the checks: tree_map to None, negative cotangents.
+    spectrum, _ = spectrum_and_conditions()
+    assert jax.tree.map(lambda x: None, spectrum).torque is None
+    negative = jax.tree.map(lambda x: -x, spectrum)
+    assert float(negative.torque[0]) == -900.0
 
 
 def test_capacity_law_calibrated_on_one_catalogue_size_predicts_the_others():

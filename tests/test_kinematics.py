@@ -125,8 +125,20 @@ def test_vmap_over_layouts_matches_one_by_one():
         )
 
 
-def test_n_theta_must_be_a_multiple_of_6_and_fidelity_known():
+def test_n_theta_must_be_a_multiple_of_6_and_solver_known():
     with pytest.raises(ValueError, match="n_theta = 100 is not allowed"):
         kinematic_metrics(seed_case("N"), n_theta=100)
-    with pytest.raises(ValueError, match="fidelity = 'exact' is not allowed; allowed: newton"):
-        kinematic_metrics(seed_case("N"), fidelity="exact")
+    with pytest.raises(ValueError, match="solver = 'exact' is not allowed; allowed: 'newton'"):
+        kinematic_metrics(seed_case("N"), solver="exact")
+
+
+def test_status_and_throw():
+    from tripodjax.results import RESULTS
+    from tripodjax.solvers import Newton, SolverError
+
+    ok = kinematic_metrics(seed_case("N"))
+    assert int(ok.result) == RESULTS.successful and bool(ok.converged)
+    capped = kinematic_metrics(seed_case("g25"), 36, Newton(max_steps=1))
+    assert int(capped.result) == RESULTS.max_steps_reached and not bool(capped.converged)
+    with pytest.raises(SolverError, match="kinematic_metrics: point \\[1\\] at θ = 0.174533 rad"):
+        kinematic_metrics(seed_case("g25"), 36, Newton(max_steps=1), throw=True)

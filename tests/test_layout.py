@@ -31,10 +31,48 @@ def test_pytree_roundtrip_jit_and_vmap():
     np.testing.assert_allclose(ratio, [0.05, 0.06])
 
 
-def test_traced_and_array_fields_are_not_checked():
-    # Out-of-domain values inside arrays pass: the domain check is for Python numbers only.
+def test_traced_and_array_fields_are_not_range_checked():
+    # Out-of-domain values inside arrays pass: the range check is for scalars; sweep checks
+    # array fields element by element.
     Layout(jnp.array(-1.0), jnp.array(500.0), jnp.array(2.0))
     jax.jit(lambda g: Layout(25.0, 500.0, g).gamma0)(jnp.array(1.5))
+
+
+def test_jax_rebuilds_layouts_without_the_checks():
+    layout = seed_case("N")
+    # Cotangents may be negative or zero, and tree_map may put None in every field.
+    grad = jax.grad(lambda lay: -lay.R * lay.gamma0 - lay.l)(layout)
+    assert isinstance(grad, Layout) and float(grad.l) == -1.0
+    assert jax.tree.map(lambda x: None, layout).R is None
+    zero = jax.tree.map(jnp.zeros_like, layout)
+    assert float(zero.l) == 0.0
+
+
+@pytest.mark.parametrize(
+    "bad",
+    ["25", b"25", True, False, np.bool_(True), None, 1 + 2j, [25.0, "a"], {"R": 25.0}, object()],
+)
+@pytest.mark.parametrize("field", ["R", "l", "gamma0"])
+def test_fields_must_be_real_numbers(field, bad):
+    kwargs = dict(R=25.0, l=500.0, gamma0=0.3)
+    kwargs[field] = bad
+    with pytest.raises(TypeError, match=f"Layout.{field}"):
+        Layout(**kwargs)
+
+
+def test_boolean_and_string_arrays_are_rejected():
+    with pytest.raises(TypeError, match="Layout.R .* has dtype bool"):
+        Layout(np.array([True, False]), np.ones(2), np.ones(2))
+    with pytest.raises(TypeError, match="Layout.gamma0"):
+        Layout(25.0, 500.0, np.array(["0.1"]))
+
+
+def test_numpy_scalars_are_checked_like_python_numbers():
+    Layout(np.float32(25.0), np.int64(500), np.float64(0.3))
+    with pytest.raises(ValueError, match="Layout.R = -1.0"):
+        Layout(np.float32(-1.0), 500.0, 0.3)
+    with pytest.raises(ValueError, match="Layout.gamma0 = nan"):
+        Layout(25.0, 500.0, np.array(np.nan))
 
 
 @pytest.mark.parametrize(
@@ -64,12 +102,46 @@ def test_domain_edges_are_allowed():
 
 
 def test_from_degrees_rejects_out_of_range_in_degrees():
-    with pytest.raises(ValueError, match="got 50°"):
+    with pytest.raises(
+        ValueError, match="gamma0_deg = 50.0 is outside the allowed range: 0 ≤ gamma0_deg ≤ 45"
+    ):
         Layout.from_degrees(25.0, 500.0, 50.0)
+    for bad in (float("nan"), float("inf"), -1.0):
+        with pytest.raises(ValueError, match="gamma0_deg"):
+            Layout.from_degrees(25.0, 500.0, bad)
+    for bad in ("20", True, None):
+        with pytest.raises(TypeError, match="gamma0_deg"):
+            Layout.from_degrees(25.0, 500.0, bad)
+    with pytest.raises(TypeError, match="Layout.R"):
+        Layout.from_degrees("25", 500.0, 20.0)
+
+
+def test_the_rule_is_shared_with_array_names_and_degrees():
+    from tripodjax._checks import check_layout_domain
+
+    with pytest.raises(
+        ValueError, match=r"layouts.R\[1\] = -3.0 is outside the allowed range: R > 0 mm"
+    ):
+        check_layout_domain(np.array([25.0, -3.0]), np.array([500.0, 500.0]), prefix="layouts.")
+    with pytest.raises(
+        ValueError,
+        match=r"layouts.R\[1\] / layouts.l\[1\] = 0.3 is outside the allowed range: R/l ≤ 0.2",
+    ):
+        check_layout_domain(np.array([25.0, 150.0]), np.array([500.0, 500.0]), prefix="layouts.")
+    with pytest.raises(ValueError, match=r"layout.gamma0_deg = 60.0 .*0 ≤ gamma0_deg ≤ 45"):
+        check_layout_domain(gamma0=60.0, names={"gamma0": "layout.gamma0_deg"}, degrees=True)
+    with pytest.raises(ValueError, match=r"bounds.R\[1\] / layout.l = 0.44"):
+        check_layout_domain(R=[20.0, 220.0], l=500.0, names={"R": "bounds.R", "l": "layout.l"})
+    with pytest.raises(TypeError, match="layout.l = 'x'"):
+        check_layout_domain(l="x", names={"l": "layout.l"})
+    check_layout_domain(R=np.array([25.0, 100.0]), l=500.0, gamma0=np.array([0.0, np.pi / 4]))
 
 
 def test_seed_cases():
     assert len(TABLE_2_1) == 11
     assert seed_case("L3").l == 300.0 and seed_case("R4").R == 40.0
-    with pytest.raises(ValueError, match="unknown Table 2.1 case 'X'"):
+    with pytest.raises(ValueError, match="code = 'X' is not allowed; allowed: 'N', 'L3'"):
         seed_case("X")
+    for bad in (None, 1, True, ["N"]):
+        with pytest.raises(TypeError, match="code = "):
+            seed_case(bad)

@@ -12,21 +12,39 @@ only at the user-facing edge). Physics layers, after the seed thesis:
 - :mod:`tripodjax.friction`: friction and the generated axial force, GAF (§3.2).
 - :mod:`tripodjax.hertz`: Hertz contact, torque capacities, minimum size, life (§4.2).
 - :mod:`tripodjax.catalogue`: GE and GI catalogue sizes (§1.1.2).
+- :mod:`tripodjax.solvers`: solver options (`Newton`, `Analytic`, `ClosedForm`).
+- :mod:`tripodjax.results`: the `RESULTS` codes carried from the Newton point to every result.
+- :mod:`tripodjax.progress`: pluggable progress meters (tqdm).
+- :mod:`tripodjax.optimize`: the design problem, its optimiser and ``optimize-joint``.
 
 Nothing here changes JAX's global configuration: enable float64 yourself with
 ``jax.config.update("jax_enable_x64", True)`` when you need it.
 """
 
-from tripodjax import catalogue, friction, hertz, joint
+import importlib.metadata
+
+from tripodjax import catalogue, friction, hertz, joint, progress, solvers
 from tripodjax.halfshaft import HalfshaftSolution, solve_halfshaft
 from tripodjax.kinematics import KinematicMetrics, kinematic_metrics
 from tripodjax.layout import TABLE_2_1, Layout, seed_case
 from tripodjax.motion import JointMotion, first_order_motion, halfshaft_motion
+from tripodjax.results import RESULTS
+from tripodjax.solvers import Analytic, ClosedForm, Newton, SolverError
 from tripodjax.sweep import sweep
 
-__version__ = "0.1.0"
+try:  # one version: the installed metadata, which pyproject.toml takes from tripodjax/_version.py
+    __version__ = importlib.metadata.version("tripodjax")
+except importlib.metadata.PackageNotFoundError:  # a source tree that is not installed
+    from tripodjax._version import version as __version__  # noqa: F401
 
 __all__ = [
+    "RESULTS",
+    "Analytic",
+    "ClosedForm",
+    "Newton",
+    "SolverError",
+    "progress",
+    "solvers",
     "HalfshaftSolution",
     "JointMotion",
     "KinematicMetrics",

@@ -20,6 +20,12 @@ def _parse(argv):
     parser.add_argument(
         "--n-theta", type=int, default=360, help="angles per revolution (default 360)"
     )
+    parser.add_argument(
+        "--solver",
+        default="newton",
+        choices=("newton", "analytic", "closed_form"),
+        help="solver level (default newton)",
+    )
     return parser.parse_args(argv)
 
 
@@ -31,10 +37,20 @@ def main(argv=None):
         "jax_enable_x64", True
     )  # the command's own choice; the library never does this
     import tripodjax
+    from tripodjax._checks import check_layout_domain
+    from tripodjax.results import RESULTS
 
     try:
+        # Named as the command's options (γ0 in degrees), then the Layout checks nothing new.
+        check_layout_domain(
+            args.R,
+            args.l,
+            args.gamma0,
+            names={"R": "--R", "l": "--l", "gamma0": "--gamma0"},
+            degrees=True,
+        )
         layout = tripodjax.Layout.from_degrees(args.R, args.l, args.gamma0)
-        metrics = tripodjax.kinematic_metrics(layout, n_theta=args.n_theta)
+        metrics = tripodjax.kinematic_metrics(layout, n_theta=args.n_theta, solver=args.solver)
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
@@ -56,10 +72,13 @@ def main(argv=None):
             "",
         ),
         ("spider axial Z*−c p-p", f"{float(metrics.spider_orbit_z):.4f} mm", ""),
-        ("Newton converged", str(bool(metrics.converged)), ""),
+        ("roller axial stroke", f"{float(metrics.roller_axial_stroke):.4f} mm", ""),
+        ("solve result", RESULTS(int(metrics.result)).name, ""),
+        ("error estimate", f"{float(metrics.error_estimate):.1e}", ""),
     ]
     print(
-        f"tripodjax {tripodjax.__version__} — halfshaft kinematics, float64, {args.n_theta} angles/rev"
+        f"tripodjax {tripodjax.__version__} — halfshaft kinematics, float64, {args.n_theta} angles/rev, "
+        f"solver {args.solver}"
     )
     print(
         f"layout: R = {args.R:g} mm, l = {args.l:g} mm, γ0 = {args.gamma0:g}°"

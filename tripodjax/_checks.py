@@ -1,14 +1,60 @@
-"""Checks of inputs at the Python boundary: concrete values only, never traced ones."""
+"""Checks of inputs at the Python boundary: concrete values only, never traced ones.
+
+One rule per domain, written once and called by every layer with its own names:
+
+- :func:`check_real` — the type rule (real numbers or arrays of them; never a
+  ``str``, ``bool``, ``None``, complex number or object);
+- :func:`check_instance` — the type rule for object arguments (a Layout, a
+  FrictionParams…);
+- :func:`check`, :func:`check_finite`, :func:`check_positive`, :func:`check_non_negative`,
+  :func:`check_shares`, :func:`check_integer` — value rules;
+- :func:`check_layout_domain` — the halfshaft layout domain (R, l, γ0), used by
+  :class:`~tripodjax.Layout`, :func:`~tripodjax.sweep` and the optimiser's spec;
+- :func:`check_choice` — every mode/choice argument.
+
+Every error is a ``ValueError`` (or ``TypeError`` for a wrong type) that names
+the argument, the offending value (with its index inside an array) and what is
+allowed. Traced values (inside ``jit``/``vmap``/``grad``) are never checked:
+there the functions propagate NaN and/or a result code instead.
+"""
+
+import dataclasses
+import math
+import numbers
 
 import jax
 import numpy as np
+
+# --------------------------------------------------------------------------- domains
+
+MAX_GAMMA0 = math.pi / 4  # rad: the documented layout domain ends at γ0 = 45°
+MAX_R_OVER_L = 0.2  # the documented layout domain ends at R/l = 0.2
+TOLERANCE_ULPS = 4  # closed upper bounds of the layout domain admit a few ulps of the value's dtype
+
+
+def _at_most(array, top, *sources):
+    """``array ≤ top`` up to :data:`TOLERANCE_ULPS` ulps of ``top`` in the values' own dtype.
+
+    float32(π/4) and float32(R)/float32(l) at R/l = 0.2 round to just above
+    the float64 bound; a value on the bound in its own precision is on it.
+    The dtype is the coarsest floating dtype among ``sources`` (default the
+    array itself), e.g. float32 for a float32 R over a float64 l.
+    """
+    floats = [a.dtype for a in (sources or (array,)) if a.dtype.kind == "f"]
+    dtype = max(floats, key=lambda d: np.finfo(d).eps) if floats else np.dtype(np.float64)
+    top = np.asarray(top, dtype)
+    return array <= top + TOLERANCE_ULPS * np.spacing(top)
+
+
+# --------------------------------------------------------------------------- types
 
 
 def concrete(value):
     """``value`` as a NumPy array when it is a concrete number or array, else None.
 
     Traced values (inside jit/vmap/grad) and the placeholders JAX puts in
-    pytrees while it rebuilds them are not checked.
+    pytrees while it rebuilds them are not checked. No type errors: use
+    :func:`check_real` at a public boundary.
     """
     if isinstance(value, jax.core.Tracer):
         return None
@@ -19,34 +65,192 @@ def concrete(value):
     return array if array.dtype.kind in "fiu" else None
 
 
+def _type_name(value):
+    return type(value).__name__
+
+
+def _not_allowed(name, value, allowed):
+    """The one wording of a type error: ``"x = 'a' is not allowed; allowed: … (got a str)"``."""
+    return f"{name} = {_show(value)} is not allowed; allowed: {allowed} (got a {_type_name(value)})"
+
+
+def check_real(name, value, *, allowed="a real number or an array of real numbers"):
+    """The type rule: ``value`` as a NumPy array of real numbers, or None when it is traced.
+
+    Raises ``TypeError`` naming ``name`` for ``str``/``bytes``, ``bool`` (Python,
+    NumPy or a boolean array), ``None``, complex numbers, objects that are not
+    numbers, and lists that do not form a rectangular array of real numbers.
+    Integers are accepted (they are real numbers); the caller checks values.
+    """
+    if isinstance(value, jax.core.Tracer):
+        if not np.issubdtype(value.dtype, np.integer) and not np.issubdtype(
+            value.dtype, np.floating
+        ):
+            raise TypeError(f"{name} has dtype {value.dtype}; allowed: {allowed}")
+        return None
+    if value is None or isinstance(value, (str, bytes, bool, np.bool_, complex, dict, set)):
+        raise TypeError(_not_allowed(name, value, allowed))
+    if isinstance(value, (list, tuple)):
+        flat = list(_flatten(value))
+        bad = [v for v in flat if not _is_real_scalar(v)]
+        if bad:
+            raise TypeError(
+                f"{name} = {value!r} holds {bad[0]!r} ({_type_name(bad[0])}); allowed: {allowed}"
+            )
+    try:
+        array = np.asarray(value)
+    except Exception:
+        raise TypeError(_not_allowed(name, value, allowed)) from None
+    if array.dtype.kind not in "fiu":
+        raise TypeError(f"{name} = {_show(value)} has dtype {array.dtype}; allowed: {allowed}")
+    return array
+
+
+def _flatten(items):
+    for item in items:
+        if isinstance(item, (list, tuple)):
+            yield from _flatten(item)
+        else:
+            yield item
+
+
+def _is_real_scalar(value):
+    if isinstance(value, (bool, np.bool_)):
+        return False
+    if isinstance(value, numbers.Real):
+        return True
+    return isinstance(value, (np.ndarray, jax.Array)) and np.asarray(value).dtype.kind in "fiu"
+
+
+def _show(value):
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def _scalar(x):
+    """A NumPy scalar as a Python number for the message (ints stay ints)."""
+    return int(x) if np.asarray(x).dtype.kind in "iu" else float(x)
+
+
+def check_instance(name, value, cls, allowed):
+    """The type rule for an object argument: ``TypeError`` naming ``name`` unless ``value`` is a ``cls``.
+
+    E.g. ``check_instance("layout", layout, Layout, "a Layout")``. Returns ``value``.
+    """
+    if not isinstance(value, cls):
+        raise TypeError(_not_allowed(name, value, allowed))
+    return value
+
+
+# --------------------------------------------------------------------------- values
+
+
 def check(name, value, ok, allowed):
-    """Raise ValueError naming ``name``, the offending value and ``allowed`` unless ``ok`` holds."""
-    array = concrete(value)
-    if array is not None and not np.all(ok(array)):
-        shown = array[~ok(array)].flat[0] if array.ndim else array
-        raise ValueError(f"{name} = {float(shown)!r} is outside the allowed range: {allowed}")
+    """Raise unless ``ok(array)`` holds everywhere for the concrete ``value``.
+
+    ``ok`` maps a NumPy array to a boolean array. The error names ``name`` (with
+    the index of the first offending element for an array), the value and
+    ``allowed``: ``"d[2] = -1.0 is outside the allowed range: d > 0"``. A wrong
+    type raises ``TypeError`` (:func:`check_real`). Returns the concrete array,
+    or None when ``value`` is traced.
+    """
+    array = check_real(name, value)
+    if array is None:
+        return None
+    good = np.broadcast_to(np.asarray(ok(array), bool), array.shape)
+    if not np.all(good):
+        if array.ndim:
+            index = tuple(int(i) for i in np.argwhere(~good)[0])
+            where = ",".join(str(i) for i in index)
+            shown = f"{name}[{where}] = {_scalar(array[index])!r}"
+        else:
+            shown = f"{name} = {_scalar(array)!r}"
+        raise ValueError(f"{shown} is outside the allowed range: {allowed}")
+    return array
+
+
+def _short(name):
+    return name.split(".")[-1]
 
 
 def check_positive(**values):
-    """Each value finite and > 0."""
+    """Each value finite and > 0, e.g. ``check_positive(d=d, R=R)``."""
     for name, value in values.items():
-        check(name, value, lambda a: np.isfinite(a) & (a > 0), f"{name} > 0")
+        check(name, value, lambda a: np.isfinite(a) & (a > 0), f"{_short(name)} > 0 (finite)")
+
+
+def check_finite(name, value, unit=""):
+    """A finite real number (or array of them), of any sign."""
+    check(name, value, np.isfinite, f"{_short(name)} finite{unit}")
 
 
 def check_non_negative(name, value, unit=""):
-    """A finite value ≥ 0."""
-    check(name, value, lambda a: np.isfinite(a) & (a >= 0), f"{name.split('.')[-1]} ≥ 0{unit}")
+    """A finite value ≥ 0 (``unit`` is appended to the allowed range, e.g. ``" N·m"``)."""
+    check(name, value, lambda a: np.isfinite(a) & (a >= 0), f"{_short(name)} ≥ 0{unit} (finite)")
 
 
-def check_shares(name, share):
-    """Non-negative shares that sum to 1."""
-    array = concrete(share)
+def check_range(
+    name, value, low=-math.inf, high=math.inf, *, low_open=False, high_open=False, unit=""
+):
+    """A finite value in the interval from ``low`` to ``high`` (closed unless ``*_open``)."""
+    short = _short(name)
+
+    def ok(a):
+        above = a > low if low_open else a >= low
+        below = a < high if high_open else a <= high
+        return np.isfinite(a) & above & below
+
+    parts = []
+    if low > -math.inf:
+        parts.append(f"{low:g} {'<' if low_open else '≤'} ")
+    parts.append(short)
+    if high < math.inf:
+        parts.append(f" {'<' if high_open else '≤'} {high:g}")
+    return check(name, value, ok, "".join(parts) + unit + " (finite)")
+
+
+def check_shares(name, share, axis=-1):
+    """Non-negative finite shares that sum to 1 (along ``axis`` for an array)."""
+    array = check_real(name, share)
     if array is None:
         return
     check_non_negative(name, share)
-    total = float(np.sum(array))
-    if abs(total - 1.0) > 1e-6:
-        raise ValueError(f"{name} sums to {total:.6g}; the shares must sum to 1")
+    total = np.sum(array, axis=axis) if array.ndim else array
+    bad = np.abs(total - 1.0) > 1e-6
+    if np.any(bad):
+        shown = float(np.asarray(total)[bad].flat[0]) if np.ndim(total) else float(total)
+        raise ValueError(f"{name} sums to {shown:.6g}; the shares must sum to 1")
+
+
+def check_integer(name, value, minimum=None, maximum=None):
+    """An integer (Python ``int``, NumPy integer or integer array; never bool or float) in range.
+
+    Returns the value; a traced integer passes unchecked. ``TypeError`` for a
+    float such as 2.5 or 3.0, a bool or a string; ``ValueError`` below
+    ``minimum`` or above ``maximum``.
+    """
+    short = _short(name)
+    if minimum is not None and maximum is not None:
+        rule = f"an integer {minimum} ≤ {short} ≤ {maximum}"
+    elif minimum is not None:
+        rule = f"an integer ≥ {minimum}"
+    elif maximum is not None:
+        rule = f"an integer ≤ {maximum}"
+    else:
+        rule = "an integer"
+    if isinstance(value, jax.core.Tracer):
+        if not np.issubdtype(value.dtype, np.integer):
+            raise TypeError(f"{name} has dtype {value.dtype}; allowed: {rule}")
+        return value
+    is_int = isinstance(value, (numbers.Integral, np.ndarray, jax.Array)) and not isinstance(
+        value, (bool, np.bool_)
+    )
+    if not is_int or np.asarray(value).dtype.kind not in "iu":
+        raise TypeError(_not_allowed(name, value, rule))
+    lo = -math.inf if minimum is None else minimum
+    hi = math.inf if maximum is None else maximum
+    check(name, value, lambda a: (a >= lo) & (a <= hi), rule)
+    return value
 
 
 def check_choice(name, value, allowed):
@@ -56,3 +260,147 @@ def check_choice(name, value, allowed):
             f"{name} = {value!r} is not allowed; allowed: {', '.join(repr(a) for a in allowed)}"
         )
     return value
+
+
+# --------------------------------------------------------------------------- the layout domain
+
+
+def check_layout_domain(R=None, l=None, gamma0=None, *, names=None, prefix="", degrees=False):
+    """The one rule for the halfshaft layout domain (seed §2.9; see :class:`~tripodjax.Layout`).
+
+    ``R > 0`` mm, ``l > 0`` mm, ``R/l ≤ 0.2`` (:data:`MAX_R_OVER_L`) and
+    ``0 ≤ γ0 ≤ π/4`` rad = 45° (:data:`MAX_GAMMA0`), every value finite and real
+    (``str``, ``bool``, ``None``… raise ``TypeError``). The two upper bounds
+    hold up to :data:`TOLERANCE_ULPS` ulps of the value's own dtype, so the
+    float32 roundings of π/4 and of R/l = 0.2 are inside.
+
+    Args:
+        R, l, gamma0: Python numbers or concrete arrays (broadcast together,
+            e.g. one element per layout of a sweep); ``None`` skips a field
+            (and the R/l rule unless both R and l are given). Traced values are
+            not checked.
+        names: display names of the fields, a mapping with any of the keys
+            ``"R"``, ``"l"``, ``"gamma0"``; default the key itself. E.g.
+            ``{"gamma0": "layout.gamma0_deg"}`` or ``{"R": "bounds.R"}``.
+        prefix: put before every display name, e.g. ``"layouts."`` for a
+            sweep (an array element is named ``layouts.R[3]``) or ``"Layout."``.
+        degrees: ``gamma0`` is in degrees (0 ≤ γ0 ≤ 45), as at the user edge.
+
+    Raises:
+        TypeError: a value that is not a real number (or array of them).
+        ValueError: naming the field (and index), the value and the allowed
+            range, e.g. ``"layouts.gamma0[2] = 0.9 is outside the allowed
+            range: 0 ≤ gamma0 ≤ π/4 = 0.785398 rad (45°), finite; got 51.57°"``.
+    """
+    shown = {"R": "R", "l": "l", "gamma0": "gamma0", **(names or {})}
+    shown = {key: prefix + value for key, value in shown.items()}
+    arrays = {}
+    if R is not None:
+        arrays["R"] = check(
+            shown["R"],
+            R,
+            lambda a: np.isfinite(a) & (a > 0),
+            f"{_short(shown['R'])} > 0 mm (finite)",
+        )
+    if l is not None:
+        arrays["l"] = check(
+            shown["l"],
+            l,
+            lambda a: np.isfinite(a) & (a > 0),
+            f"{_short(shown['l'])} > 0 mm (finite)",
+        )
+    if gamma0 is not None:
+        name = shown["gamma0"]
+        array = check_real(name, gamma0)
+        if array is not None:
+            top = 45.0 if degrees else MAX_GAMMA0
+            good = np.isfinite(array) & (array >= 0) & _at_most(array, top)
+            if not np.all(good):
+                index = (
+                    tuple(int(i) for i in np.argwhere(~np.atleast_1d(good))[0])
+                    if array.ndim
+                    else ()
+                )
+                value = float(array[index]) if array.ndim else float(array)
+                label = f"{name}[{','.join(map(str, index))}]" if array.ndim else name
+                if degrees:
+                    allowed = f"0 ≤ {_short(name)} ≤ 45°, finite"
+                else:
+                    allowed = f"0 ≤ {_short(name)} ≤ π/4 = {MAX_GAMMA0:.6f} rad (45°), finite"
+                    if math.isfinite(value):
+                        allowed += f"; got {math.degrees(value):.10g}°"
+                raise ValueError(f"{label} = {value!r} is outside the allowed range: {allowed}")
+    if arrays.get("R") is not None and arrays.get("l") is not None:
+        R_array, l_array = np.broadcast_arrays(arrays["R"], arrays["l"])
+        ratio = R_array / l_array
+        bad = ~_at_most(ratio, MAX_R_OVER_L, arrays["R"], arrays["l"])
+        if np.any(bad):
+            if ratio.ndim:
+                index = tuple(int(i) for i in np.argwhere(bad)[0])
+                at = f"[{','.join(map(str, index))}]"
+            else:
+                index, at = (), ""
+            r_name = shown["R"] + (at if np.ndim(arrays["R"]) else "")
+            l_name = shown["l"] + (at if np.ndim(arrays["l"]) else "")
+            R_value, l_value = float(R_array[index]), float(l_array[index])
+            raise ValueError(
+                f"{r_name} / {l_name} = {float(ratio[index]):.4g} is outside the allowed range: "
+                f"R/l ≤ {MAX_R_OVER_L} (R = {R_value!r} mm, l = {l_value!r} mm, "
+                f"so R ≤ {MAX_R_OVER_L * l_value:g} mm)"
+            )
+
+
+# --------------------------------------------------------------------------- hertz domain
+
+MIN_CONFORMITY = 1.0005
+"""Smallest conformity Ψ = 2 R_g/d accepted (Ψ − 1 ≥ 5·10⁻⁴), see :func:`check_conformity`."""
+
+
+def check_conformity(value, name="conformity"):
+    """The Hertz conformity rule: Ψ = 2 R_g/d finite and ≥ :data:`MIN_CONFORMITY` (1.0005).
+
+    Ψ − 1 ≥ 5·10⁻⁴: a quarter of the lower end of the workbook's experience range
+    (1.002–1.008). Below it the groove-to-roller radius clearance R_g − d/2 =
+    (Ψ − 1)·d/2 is under 10 µm on a 40 mm roller, the order of the grinding
+    tolerance of the track, so the conformity is not made nor held; and the
+    capacities grow without bound as Ψ → 1 (M ∝ (μν)³ with κ ≈ 100 at 1.0005,
+    cos τ = 1/(2Ψ − 1) ≈ 0.999, the end of the usual tables of μ, ν).
+    """
+    return check(
+        name,
+        value,
+        lambda a: np.isfinite(a) & (a >= MIN_CONFORMITY),
+        f"{_short(name)} Ψ ≥ {MIN_CONFORMITY} (Ψ − 1 ≥ 5e-4; workbook range 1.002–1.008)",
+    )
+
+
+# --------------------------------------------------------------------------- pytrees
+
+
+def checked_pytree_dataclass(cls):
+    """A frozen dataclass registered as a pytree whose ``__post_init__`` checks run on user calls only.
+
+    Unlike :func:`tripodjax._pytree.pytree_dataclass`, JAX rebuilds instances
+    (after ``jit``/``vmap``/``grad``, ``tree_map`` with ``None`` leaves,
+    cotangents that are negative…) without calling ``__init__``, so the
+    checks can be strict: a ``None``, ``str`` or ``bool`` field raises
+    ``TypeError`` instead of being taken for a JAX placeholder.
+    """
+    cls = dataclasses.dataclass(frozen=True)(cls)
+    names = tuple(f.name for f in dataclasses.fields(cls))
+    keys = tuple(jax.tree_util.GetAttrKey(name) for name in names)
+
+    def flatten_with_keys(obj):
+        return tuple(zip(keys, (getattr(obj, name) for name in names), strict=True)), None
+
+    def flatten(obj):
+        return tuple(getattr(obj, name) for name in names), None
+
+    def unflatten(_, children):
+        obj = object.__new__(cls)
+        for name, child in zip(names, children, strict=True):
+            object.__setattr__(obj, name, child)
+        return obj
+
+    jax.tree_util.register_pytree_with_keys(cls, flatten_with_keys, unflatten, flatten)
+    return cls

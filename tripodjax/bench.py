@@ -1,19 +1,22 @@
-"""``python -m tripodjax.bench``: throughput and accuracy of the fidelity levels, side by side.
+"""``python -m tripodjax.bench``: throughput and accuracy of the solver levels, side by side.
 
-Measures, in one process on the current machine, each fidelity level and
-dtype of :func:`tripodjax.sweep` against two peers solving the same equations
-on the same grid (one period of ``n_theta`` angles per layout):
+Measures, in one process on the current machine, each solver level
+(:mod:`tripodjax.solvers`: newton, analytic, closed_form) and dtype of
+:func:`tripodjax.sweep` against two peers solving the same equations on the
+same grid (one period of ``n_theta`` angles per layout):
 
 - a vectorised NumPy Newton of the scaled residual pair (same closed-form
   Jacobian, same tolerance, dψ/dθ by the implicit function theorem);
 - a per-point ``scipy.optimize.fsolve`` loop on the printed pair, the seed's
-  own workflow, on a subsample (SciPy is a development dependency).
+  own workflow, on a subsample (SciPy: the ``bench`` extra, ``pip install "tripodjax[bench]"``).
 
-It prints points/s (layouts × angles solved per second), the ratios to the
-peers, the cost of a gradient relative to the forward pass, and the error of
-delta_pp, irregularity and gamma_pp against converged float64; and writes the
-figures as JSON. Absolute times do not transfer between machines; the ratios
-measured in one run do.
+It prints points/s (layouts × angles solved per second), the ratios to newton
+in the same dtype and to the peers, the cost of a gradient relative to the
+forward pass, and the error of delta_pp, irregularity, gamma_pp and ecc_max
+against converged float64 — over the seed's design range (the timed set) and
+over the whole domain (R/l log-uniform 1e-3…0.2, γ0 uniform 0…45°, plus the
+corner R/l = 0.2, γ0 = 45°); and writes the figures as JSON. Absolute times
+do not transfer between machines; the ratios measured in one run do.
 """
 
 import argparse
@@ -26,13 +29,30 @@ import time
 
 import numpy as np
 
-COMPARED = ("delta_pp", "irregularity", "gamma_pp")
+COMPARED = ("delta_pp", "irregularity", "gamma_pp", "ecc_max")
+SOLVERS = ("newton", "analytic", "closed_form")
 
 
 def random_layouts(n, seed=0):
     """Layouts drawn uniformly over R 18–42 mm, l 300–800 mm, γ0 5–25° (the seed's design range)."""
     rng = np.random.default_rng(seed)
     return rng.uniform(18, 42, n), rng.uniform(300, 800, n), np.radians(rng.uniform(5, 25, n))
+
+
+def domain_layouts(n, seed=1):
+    """Layouts over the whole domain: R/l log-uniform 1e-3…0.2, γ0 uniform 0…45°, l 50–2000 mm.
+
+    The first eighth sits on the edges R/l = 0.2 or γ0 = 45°, the corner included.
+    """
+    rng = np.random.default_rng(seed)
+    top = 0.2  # the bound itself: the domain check allows float32's rounding of it
+    ratio = np.exp(rng.uniform(np.log(1e-3), np.log(top), n))
+    gamma0 = rng.uniform(0.0, np.pi / 4, n)
+    edge = max(n // 16, 1)
+    ratio[:edge], gamma0[edge : 2 * edge] = top, np.pi / 4
+    ratio[0], gamma0[0] = top, np.pi / 4
+    l = np.exp(rng.uniform(np.log(50.0), np.log(2000.0), n))
+    return ratio * l, l, gamma0
 
 
 # --------------------------------------------------------------------------- NumPy peer
@@ -79,10 +99,12 @@ def numpy_newton_metrics(R, l, gamma0, n_theta, rtol=NUMPY_RTOL, max_steps=24):
     (j11, _), (j21, _) = jacobian
     H = consts["H"]
     minus_d_delta = newton_step((j11 + H * np.cos(delta), j21 - H * np.sin(delta)), jacobian)[0]
+    gamma = g0 * (1 + v)
     return {
         "delta_pp": np.ptp(delta, axis=1),
         "irregularity": np.ptp(1 + minus_d_delta, axis=1),
         "gamma_pp": np.ptp(g0 * v, axis=1),
+        "ecc_max": np.max(R * np.sin(gamma / 2) ** 2 / np.cos(gamma), axis=1),
     }
 
 
@@ -122,6 +144,7 @@ def fsolve_metrics(R, l, gamma0, n_theta):
         out["delta_pp"].append(np.ptp(theta - np.array(psi)))
         out["irregularity"].append(np.ptp(slope))
         out["gamma_pp"].append(np.ptp(gamma))
+        out["ecc_max"].append(np.max(0.5 * Ri * (1 - np.cos(gamma)) / np.cos(gamma)))
     return {name: np.array(values) for name, values in out.items()}
 
 
@@ -139,10 +162,18 @@ def _best_time(f, repeats):
 
 
 def _relative_error(values, reference):
-    return float(np.max(np.abs(values / reference - 1)))
+    keep = reference != 0  # γ0 = 0: every metric is 0 exactly at every level
+    return float(np.max(np.abs(values[keep] / reference[keep] - 1), initial=0.0))
 
 
-def run(n_layouts=20000, n_theta=360, fsolve_layouts=20, repeats=3, gradient_layouts=2000):
+def run(
+    n_layouts=20000,
+    n_theta=360,
+    fsolve_layouts=20,
+    repeats=3,
+    gradient_layouts=2000,
+    domain_n=2000,
+):
     import jax
     import jax.numpy as jnp
 
@@ -160,6 +191,7 @@ def run(n_layouts=20000, n_theta=360, fsolve_layouts=20, repeats=3, gradient_lay
         "n_layouts": n_layouts,
         "n_theta": n_theta,
         "angles_solved_per_layout": n_theta // 3,
+        "domain_layouts": domain_n,
         "variants": {},
     }
 
@@ -167,23 +199,41 @@ def run(n_layouts=20000, n_theta=360, fsolve_layouts=20, repeats=3, gradient_lay
         return tj.Layout(*(np.asarray(a, dtype) for a in (R, l, g0)))
 
     reference = tj.sweep(layouts(np.float64), n_theta=n_theta, outputs=COMPARED)
-    for fidelity in ("newton", "analytic"):
+    dR, dl, dg = domain_layouts(domain_n)
+    domain_reference = tj.sweep(
+        layouts(np.float64, dR, dl, dg), n_theta=n_theta, outputs=(*COMPARED, "error_estimate")
+    )
+    for solver in SOLVERS:
         for dtype in (np.float64, np.float32):
             batch = layouts(dtype)
             holder = {}
 
-            def call(holder=holder, batch=batch, fidelity=fidelity):
-                holder["r"] = tj.sweep(batch, n_theta=n_theta, fidelity=fidelity, outputs=COMPARED)
+            def call(holder=holder, batch=batch, solver=solver):
+                holder["r"] = tj.sweep(batch, n_theta=n_theta, solver=solver, outputs=COMPARED)
 
             seconds = _best_time(call, repeats)
-            name = f"{fidelity}/{np.dtype(dtype).name}"
+            domain = tj.sweep(
+                layouts(dtype, dR, dl, dg),
+                n_theta=n_theta,
+                solver=solver,
+                outputs=(*COMPARED, "error_estimate"),
+            )
+            name = f"{solver}/{np.dtype(dtype).name}"
             results["variants"][name] = {
                 "seconds": seconds,
                 "points_per_s": points / seconds,
                 "errors_vs_newton_float64": {
                     k: _relative_error(holder["r"][k].astype(float), reference[k]) for k in COMPARED
                 },
+                "domain_errors_vs_newton_float64": {
+                    k: _relative_error(domain[k].astype(float), domain_reference[k])
+                    for k in COMPARED
+                },
+                "domain_max_error_estimate": float(np.max(domain["error_estimate"])),
             }
+    for name, entry in results["variants"].items():
+        newton = results["variants"]["newton/" + name.split("/")[1]]
+        entry["speedup_vs_newton_same_dtype"] = newton["seconds"] / entry["seconds"]
 
     holder = {}
     numpy_seconds = _best_time(
@@ -257,7 +307,8 @@ def report(results):
     lines = [
         f"tripodjax bench — {results['n_layouts']} layouts × {results['angles_solved_per_layout']} angles "
         f"(one period of {results['n_theta']}), backend {results['backend']}, {results['cpu_count']} CPU cores",
-        f"{'variant':<22} {'points/s':>12} {'× NumPy':>9} {'× fsolve':>10} {'err delta_pp':>13} {'err Irr':>9} {'err gamma_pp':>13}",
+        f"{'variant':<26} {'points/s':>10} {'× newton':>9} {'× NumPy':>8} {'× fsolve':>9} "
+        f"{'err delta_pp':>13} {'err Irr':>9} {'err gamma_pp':>13} {'err ecc_max':>12}",
     ]
     numpy_rate = results["numpy_newton"]["points_per_s"]
     fsolve_rate = results["fsolve_loop"]["points_per_s"]
@@ -267,9 +318,22 @@ def report(results):
     ]
     for name, r in rows:
         e = r["errors_vs_newton_float64"]
+        speedup = r.get("speedup_vs_newton_same_dtype")
+        speedup = f"{speedup:>9.1f}" if speedup is not None else f"{'':>9}"
         lines.append(
-            f"{name:<22} {r['points_per_s']:>12.3g} {r['points_per_s'] / numpy_rate:>9.2f} {r['points_per_s'] / fsolve_rate:>10.1f} "
-            f"{e['delta_pp']:>13.1e} {e['irregularity']:>9.1e} {e['gamma_pp']:>13.1e}"
+            f"{name:<26} {r['points_per_s']:>10.3g} {speedup} {r['points_per_s'] / numpy_rate:>8.2f} "
+            f"{r['points_per_s'] / fsolve_rate:>9.1f} {e['delta_pp']:>13.1e} "
+            f"{e['irregularity']:>9.1e} {e['gamma_pp']:>13.1e} {e['ecc_max']:>12.1e}"
+        )
+    lines.append(
+        f"whole domain ({results['domain_layouts']} layouts, R/l ≤ 0.2, γ0 ≤ 45°, corner included):"
+    )
+    for name, r in results["variants"].items():
+        e = r["domain_errors_vs_newton_float64"]
+        lines.append(
+            f"  {name:<24} err delta_pp {e['delta_pp']:.1e}  Irr {e['irregularity']:.1e}  "
+            f"gamma_pp {e['gamma_pp']:.1e}  ecc_max {e['ecc_max']:.1e}  "
+            f"largest error estimate {r['domain_max_error_estimate']:.1e}"
         )
     g = results["gradient_to_forward"]
     lines.append(
@@ -280,11 +344,23 @@ def report(results):
         lines.append(
             f"a {m['layouts']}-layout sweep added {m['added_mb']:.0f} MB to the peak resident memory"
         )
-    lines.append("errors: largest relative difference from newton/float64 over the layouts")
+    lines.append(
+        "errors: largest relative difference from newton/float64 over the layouts "
+        "(the timed set: R 18–42 mm, l 300–800 mm, γ0 5–25°)"
+    )
     return "\n".join(lines)
 
 
 def main(argv=None):
+    try:
+        import scipy.optimize  # noqa: F401  (the fsolve peer)
+    except ModuleNotFoundError:
+        print(
+            "python -m tripodjax.bench needs SciPy for its fsolve peer: "
+            'pip install "tripodjax[bench]"',
+            file=sys.stderr,
+        )
+        return 2
     parser = argparse.ArgumentParser(
         prog="python -m tripodjax.bench", description=__doc__.split("\n\n")[0]
     )
@@ -304,6 +380,12 @@ def main(argv=None):
         "--repeats", type=int, default=3, help="timed repeats, best kept (default 3)"
     )
     parser.add_argument(
+        "--domain-layouts",
+        type=int,
+        default=2000,
+        help="layouts of the whole-domain accuracy check (default 2000)",
+    )
+    parser.add_argument(
         "--memory",
         type=int,
         default=0,
@@ -321,7 +403,9 @@ def main(argv=None):
     jax.config.update(
         "jax_enable_x64", True
     )  # the command's own choice: float64 variants and reference
-    results = run(args.layouts, args.n_theta, args.fsolve_layouts, args.repeats)
+    results = run(
+        args.layouts, args.n_theta, args.fsolve_layouts, args.repeats, domain_n=args.domain_layouts
+    )
     if args.memory:
         results["memory"] = memory_of_sweep(args.memory, args.n_theta)
     print(report(results))

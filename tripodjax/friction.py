@@ -23,17 +23,26 @@ import math
 import jax
 import jax.numpy as jnp
 
-from tripodjax import joint
-from tripodjax._checks import check_non_negative, check_positive
+from tripodjax import joint, solvers
+from tripodjax._checks import (
+    check_choice,
+    check_finite,
+    check_instance,
+    check_non_negative,
+    check_positive,
+    checked_pytree_dataclass,
+)
 from tripodjax._pytree import pytree_dataclass
-from tripodjax.kinematics import check_fidelity, revolution
+from tripodjax.kinematics import _check_n_theta, revolution
+from tripodjax.layout import check_layout
+from tripodjax.results import RESULTS, code_where, worst
 
 GAF_MODELS = ("printed", "stroke")
 STROKES = ("in", "out")
 DEFAULT_STROKE_WIDTH = 0.01  # [–] width of the smooth stroke sign, in units of tan γ · cos θ
 
 
-@pytree_dataclass
+@checked_pytree_dataclass
 class FrictionParams:
     """Constants of the Lee–Polycarpou friction model (defaults: the seed's, grease A).
 
@@ -46,7 +55,14 @@ class FrictionParams:
         lam: rolling resistance λ [–] (see :func:`rolling_resistance_hysteresis`,
             :func:`rolling_resistance_microslip`).
 
-    A pytree: every field is differentiable (``jax.grad`` returns a FrictionParams).
+    A pytree: every field is differentiable (``jax.grad`` returns a FrictionParams)
+    and may be traced (e.g. ``params.replace(lam=x)`` inside ``jit``). Concrete
+    fields (Python or NumPy numbers, concrete arrays) are checked at
+    construction: each must be a finite real number ≥ 0 (every constant of
+    the model is non-negative), else ``ValueError`` (``TypeError`` for a
+    string, bool or None) naming the field, the value and the allowed range.
+    Traced fields are not checked; inside ``jit`` a NaN constant gives a NaN
+    GAF.
     """
 
     C_s1: float = 3.86e-2
@@ -65,7 +81,7 @@ class FrictionParams:
     lam: float = 0.007
 
     def __post_init__(self):
-        for name in ("mu_slp", "lam", "R_s"):
+        for name in self.__dataclass_fields__:
             check_non_negative(f"FrictionParams.{name}", getattr(self, name))
 
     def replace(self, **changes):
@@ -110,8 +126,7 @@ def mu_slip_to_roll(gamma, params=GREASE_A):
 
 def mu_dyn(theta, gamma, params=GREASE_A, stroke="in"):
     """Dynamic friction coefficient (3.2.11) for the inward (+) or outward (−) stroke."""
-    if stroke not in STROKES:
-        raise ValueError(f"stroke = {stroke!r} is not allowed; allowed: {', '.join(STROKES)}")
+    check_choice("stroke", stroke, STROKES)
     sign = 1.0 if stroke == "in" else -1.0
     g = _degrees(gamma)
     return sign * (
@@ -131,8 +146,7 @@ def rolling_resistance_hysteresis(a, rolling_radius, loss_factor, contact="ellip
     ``hertz.roller_contact(...).b``), R the rolling radius [mm] and α the
     hysteresis loss factor [–].
     """
-    if contact not in CONTACTS:
-        raise ValueError(f"contact = {contact!r} is not allowed; allowed: {', '.join(CONTACTS)}")
+    check_choice("contact", contact, CONTACTS)
     check_positive(rolling_radius=rolling_radius)
     check_non_negative("a", a, " mm")
     check_non_negative("loss_factor", loss_factor)
@@ -176,21 +190,30 @@ def _stroke_weight(theta_i, stroke_rate_i, model, width):
 
 
 def _gaf_force(theta_i, gamma, stroke_rate_i, torque, R, params, model, width):
-    """GAF [N] from the roller angles θ_i (…, 3), γ and the rollers' normalised stroke rates."""
+    """GAF [N] from the roller angles θ_i (…, 3), γ and the rollers' normalised stroke rates.
+
+    A non-finite R or width (inside jit, where nothing is checked) gives NaN,
+    not the 0 that 1/R → 0 or tanh(s/width) → 0 would make of it.
+    """
     magnitude = jnp.abs(mu_dyn(theta_i, gamma[..., None], params, "in"))
     mu_gaf = _stroke_weight(theta_i, stroke_rate_i, model, width) * magnitude
-    return 2000.0 * torque / (3.0 * R) * jnp.sum(mu_gaf, axis=-1)
+    force = 2000.0 * torque / (3.0 * R) * jnp.sum(mu_gaf, axis=-1)
+    finite = jnp.isfinite(R) & jnp.isfinite(width)
+    return jnp.where(finite, force, jnp.nan)
 
 
 def _check_model(model, width):
-    if model not in GAF_MODELS:
-        raise ValueError(f"model = {model!r} is not allowed; allowed: {', '.join(GAF_MODELS)}")
+    check_choice("model", model, GAF_MODELS)
     check_positive(width=width)
 
 
 def _check_load(torque, R):
     check_non_negative("torque", torque, " N·m")
     check_positive(R=R)
+
+
+def _check_params(params, name="params"):
+    check_instance(name, params, FrictionParams, "a FrictionParams, e.g. friction.GREASE_A")
 
 
 def gaf(theta, gamma, torque, R, params=GREASE_A, model="printed", width=DEFAULT_STROKE_WIDTH):
@@ -215,8 +238,11 @@ def gaf(theta, gamma, torque, R, params=GREASE_A, model="printed", width=DEFAULT
 
     Differentiable w.r.t. γ, torque, R and every FrictionParams field.
     """
-    _check_model(model, width)
+    check_finite("theta", theta, " [rad]")
+    check_finite("gamma", gamma, " [rad]")
     _check_load(torque, R)
+    _check_params(params)
+    _check_model(model, width)
     theta_i = joint.roller_angles(jnp.asarray(theta, jnp.result_type(theta, gamma, 0.0)))
     gamma = jnp.broadcast_to(jnp.asarray(gamma, theta_i.dtype), theta_i.shape[:-1])
     stroke_rate = jnp.tan(gamma)[..., None] * jnp.cos(theta_i)
@@ -224,10 +250,11 @@ def gaf(theta, gamma, torque, R, params=GREASE_A, model="printed", width=DEFAULT
 
 
 def _safe_rms(x, axis=-1):
-    """Root mean square with a finite (zero) derivative where it vanishes."""
+    """Root mean square with a finite (zero) derivative where it vanishes; NaN stays NaN."""
     mean_square = jnp.mean(x**2, axis=axis)
     positive = mean_square > 0
-    return jnp.where(positive, jnp.sqrt(jnp.where(positive, mean_square, 1.0)), 0.0)
+    # Where not positive the mean square is 0 (value and derivative 0) or NaN (kept).
+    return jnp.where(positive, jnp.sqrt(jnp.where(positive, mean_square, 1.0)), mean_square)
 
 
 def harmonic_amplitude(signal, order_per_sample_period):
@@ -249,6 +276,10 @@ class GAFResult:
         rms: root mean square over a revolution [N].
         peak: largest |GAF| [N].
         third_order: amplitude of the third rotating order [N].
+        result: worst :class:`~tripodjax.RESULTS` code of the kinematics over
+            the revolution, or ``nonfinite`` where the force is not finite
+            (e.g. a NaN torque or friction constant inside ``jit``: the RMS
+            is then NaN, never 0).
     """
 
     theta: jax.Array
@@ -256,10 +287,15 @@ class GAFResult:
     rms: jax.Array
     peak: jax.Array
     third_order: jax.Array
+    result: jax.Array
 
 
 def gaf_from_revolution(layout, sol, rates, torque, params, model, width):
-    """GAF over a revolution from a halfshaft solution and its θ-rates (see :func:`gaf_halfshaft`)."""
+    """GAF over a revolution from a halfshaft solution and its θ-rates (see :func:`gaf_halfshaft`).
+
+    ``sol, rates`` come from :func:`~tripodjax.kinematics.revolution` with
+    ``with_rates=True``; no argument is checked here (it runs inside jit).
+    """
     dtype = sol.theta.dtype
     R, l, gamma0 = (jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0))
 
@@ -270,12 +306,14 @@ def gaf_from_revolution(layout, sol, rates, torque, params, model, width):
     _, dz = jax.jvp(axial_positions, (sol.psi, sol.gamma), (rates.psi, rates.gamma))
     theta_lee = joint.roller_angles(sol.psi) + 0.5 * jnp.pi
     force = _gaf_force(theta_lee, sol.gamma, -dz / R, torque, R, params, model, width)
+    rms = _safe_rms(force)
     return GAFResult(
         theta=sol.theta,
         force=force,
-        rms=_safe_rms(force),
+        rms=rms,
         peak=jnp.max(jnp.abs(force)),
         third_order=harmonic_amplitude(force, 1),
+        result=worst(jnp.max(sol.result), code_where(~jnp.isfinite(rms), RESULTS.nonfinite, 0)),
     )
 
 
@@ -286,7 +324,9 @@ def gaf_halfshaft(
     n_theta=360,
     model="printed",
     width=DEFAULT_STROKE_WIDTH,
-    fidelity="newton",
+    solver="newton",
+    *,
+    fidelity=solvers._UNSET,
 ):
     """GAF of a halfshaft over a revolution, from the instantaneous γ(θ) and roller angles.
 
@@ -295,22 +335,26 @@ def gaf_halfshaft(
     stroke, the Lee model from mid-stroke. The stroke model's rate is the
     exact s_i = −(1/R) dZ_i/dθ of each roller's axial position (2.6.2, with
     the spider plunge c), by forward-mode AD through the solve; at first
-    order it is tan γ cos θ_L,i, as in :func:`gaf`. ``fidelity`` picks the
-    kinematics (:func:`~tripodjax.kinematic_metrics`).
+    order it is tan γ cos θ_L,i, as in :func:`gaf`. ``solver`` picks the
+    kinematics (a :mod:`tripodjax.solvers` object or shorthand, see
+    :func:`~tripodjax.kinematic_metrics`); ``result`` carries its status.
 
     Differentiable w.r.t. the layout (R, l, γ0), the torque and every
     FrictionParams field, with derivatives of the solve from the implicit
     function theorem.
     """
-    _check_model(model, width)
+    check_layout(layout)
     _check_load(torque, layout.R)
-    check_fidelity(fidelity)
+    _check_params(params)
+    _check_model(model, width)
+    solver = solvers.resolve_legacy(solver, fidelity)  # fidelity: the older spelling
+    _check_n_theta(n_theta)
     return _gaf_halfshaft(
-        layout, torque, params, width, n_theta=n_theta, model=model, fidelity=fidelity
+        layout, torque, params, width, n_theta=n_theta, model=model, solver=solver
     )
 
 
-@functools.partial(jax.jit, static_argnames=("n_theta", "model", "fidelity"))
-def _gaf_halfshaft(layout, torque, params, width, *, n_theta, model, fidelity):
-    sol, rates = revolution(layout, n_theta, fidelity, with_rates=True)
+@functools.partial(jax.jit, static_argnames=("n_theta", "model", "solver"))
+def _gaf_halfshaft(layout, torque, params, width, *, n_theta, model, solver):
+    sol, rates = revolution(layout, n_theta, solver, with_rates=True)
     return gaf_from_revolution(layout, sol, rates, torque, params, model, width)

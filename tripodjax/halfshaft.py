@@ -18,10 +18,15 @@ terms rewritten as a product of sines (see :func:`scaled_residual`). The
 scaled Jacobian tends to diag(−1, 1) as γ0 → 0, so the solve stays regular at
 γ0 = 0, where the solution is ψ = θ, γ = 0 exactly.
 
-Derivatives of the solution (w.r.t. θ, R, l, γ0, any order) come from the
-implicit function theorem, in a ``jax.custom_jvp`` rule that solves with the
-closed-form Jacobian at the solution; the Newton iterations are never
-differentiated. The solve works elementwise on arrays of any shape.
+Two solver levels (:mod:`tripodjax.solvers`): :class:`~tripodjax.solvers.Newton`
+iterates to the dtype's tolerance, and its derivatives (w.r.t. θ, R, l, γ0,
+any order) come from the implicit function theorem, in a ``jax.custom_jvp``
+rule that solves with the closed-form Jacobian at the solution (the iterations
+are never differentiated); :class:`~tripodjax.solvers.Analytic` is the closed
+form plus a fixed number of Newton corrections in plain arithmetic,
+differentiated as written. Every point carries a result code
+(:class:`~tripodjax.RESULTS`) and an error estimate. The solve works
+elementwise on arrays of any shape.
 """
 
 import functools
@@ -31,9 +36,13 @@ import jax.numpy as jnp
 import numpy as np
 from jax.custom_derivatives import SymbolicZero
 
+from tripodjax import solvers
+from tripodjax._checks import check_real
 from tripodjax._pytree import pytree_dataclass
+from tripodjax.layout import check_layout
+from tripodjax.results import RESULTS, code_where
+from tripodjax.solvers import DEFAULT_MAX_STEPS, Analytic, Newton, SolverError  # noqa: F401
 
-DEFAULT_MAX_STEPS = 24
 _RTOL_EPS_MULTIPLE = 32.0
 
 
@@ -69,19 +78,31 @@ def layout_constants(xp, R, l, gamma0, theta):
     )
 
 
-def scaled_system(xp, consts, delta, v):
+def scaled_system(xp, consts, delta, v, small_angles=False):
     """Scaled residual (g1, g2) and closed-form Jacobian of the pair at (Δ, v).
 
     Every angle is built from two sine–cosine pairs, of Δ/2 and of
     (γ − γ0)/2 = (γ0/2)·v, and the loop invariants of :func:`layout_constants`
     (angle-addition and triple-angle identities), so an iteration costs four
     transcendental functions. Returns ``(g1, g2), ((j11, j12), (j21, j22))``.
+
+    With ``small_angles`` the sines and cosines of the small angles Δ/2 and
+    (γ − γ0)/2 are Taylor polynomials (:func:`small_angle_sincos`), and an
+    iteration is pure arithmetic (for |Δ|, |γ − γ0| ≲ 0.1 only).
     """
     half0, s0, c0, k, H = (consts[n] for n in ("half0", "s0", "c0", "k", "H"))
-    sd, cd = xp.sin(0.5 * delta), xp.cos(0.5 * delta)
     y = half0 * v
-    sy, cy = xp.sin(y), xp.cos(y)
-    sigma = v * _sinc(xp, y, sy) / consts["sinc0"]  # sin((γ−γ0)/2)/sin(γ0/2)
+    inv_sinc0 = 1.0 / consts["sinc0"]
+    if small_angles:
+        sd, cd = small_angle_sincos(0.5 * delta)
+        sy, cy = small_angle_sincos(y)
+        y2 = y * y
+        sinc_y = 1.0 - y2 / 6.0 * (1.0 - y2 / 20.0 * (1.0 - y2 / 42.0))
+    else:
+        sd, cd = xp.sin(0.5 * delta), xp.cos(0.5 * delta)
+        sy, cy = xp.sin(y), xp.cos(y)
+        sinc_y = _sinc(xp, y, sy)
+    sigma = v * sinc_y * inv_sinc0  # sin((γ−γ0)/2)/sin(γ0/2)
     rho = cy + c0 * sigma  # sin(γ/2)/sin(γ0/2)
     sin_half_gamma = s0 * cy + c0 * sy
     cos_half_gamma = c0 * cy - s0 * sy
@@ -95,14 +116,15 @@ def scaled_system(xp, consts, delta, v):
     cp = consts["cos_15t"] * c3d + consts["sin_15t"] * s3d
     sin3, cos3 = 2.0 * sp * cp, 1.0 - 2.0 * sp**2
     sin_delta, cos_delta = 2.0 * sd * cd, 1.0 - 2.0 * sd**2
-    g1 = -H * sin_delta - k * q * sin3 / cos_g
+    kq_cg = k * q / cos_g
+    g1 = -H * sin_delta - kq_cg * sin3
     g2 = 2.0 * H * sd**2 + sigma * (cos_mid + k * sin_mid) - 2.0 * k * q * sp**2
     dq_dv = 2.0 * half0 * rho * cos_half_gamma
-    j11 = -H * cos_delta + 3.0 * k * q * cos3 / cos_g
-    j12 = -k * sin3 * (dq_dv / cos_g + q * 2.0 * half0 * sin_g / cos_g**2)
+    j11 = -H * cos_delta + 3.0 * kq_cg * cos3
+    j12 = -k * sin3 / cos_g * (dq_dv + q * 2.0 * half0 * sin_g / cos_g)
     j21 = H * sin_delta + 3.0 * k * q * sin3
     j22 = (
-        cy / consts["sinc0"] * (cos_mid + k * sin_mid)
+        cy * inv_sinc0 * (cos_mid + k * sin_mid)
         + sigma * half0 * (k * cos_mid - sin_mid)
         - 2.0 * k * sp**2 * dq_dv
     )
@@ -112,8 +134,8 @@ def scaled_system(xp, consts, delta, v):
 def newton_step(residual, jacobian):
     """The Newton step −J⁻¹ g of a 2×2 system by Cramer's rule, elementwise."""
     (g1, g2), ((j11, j12), (j21, j22)) = residual, jacobian
-    det = j11 * j22 - j12 * j21
-    return -(g1 * j22 - j12 * g2) / det, -(j11 * g2 - g1 * j21) / det
+    inv_det = 1.0 / (j11 * j22 - j12 * j21)
+    return -(g1 * j22 - j12 * g2) * inv_det, -(j11 * g2 - g1 * j21) * inv_det
 
 
 def first_order_amplitude(consts):
@@ -150,6 +172,18 @@ def default_rtol(dtype):
     return _RTOL_EPS_MULTIPLE * float(jnp.finfo(dtype).eps)
 
 
+def small_angle_sincos(x):
+    """(sin x, cos x) by Taylor polynomials to x⁹ and x⁸: exact to roundoff for |x| ≤ 0.05.
+
+    Used by the corrections of :class:`~tripodjax.solvers.Analytic`, where
+    the arguments are Δ/2 and (γ − γ0)/2 (|Δ| ≤ 0.06 over the domain).
+    """
+    x2 = x * x
+    sin = x * (1.0 - x2 / 6.0 * (1.0 - x2 / 20.0 * (1.0 - x2 / 42.0 * (1.0 - x2 / 72.0))))
+    cos = 1.0 - x2 / 2.0 * (1.0 - x2 / 12.0 * (1.0 - x2 / 30.0 * (1.0 - x2 / 56.0)))
+    return sin, cos
+
+
 def analytic_unknowns(xp, consts, theta):
     """(Δ, v) of the closed form of :func:`analytic_halfshaft`; θ enters through sin 3θ, cos 3θ."""
     k, s0, c0, H, half0 = (consts[n] for n in ("k", "s0", "c0", "H", "half0"))
@@ -167,38 +201,53 @@ def analytic_unknowns(xp, consts, theta):
     return z * (1.0 + z * z / 6.0), v
 
 
+def _nonfinite_inputs(R, l, gamma0, theta):
+    bad = ~(jnp.isfinite(R) & jnp.isfinite(l) & jnp.isfinite(gamma0) & jnp.isfinite(theta))
+    return jnp.broadcast_to(
+        bad, jnp.broadcast_shapes(*(jnp.shape(a) for a in (R, l, gamma0, theta)))
+    )
+
+
 def _newton(R, l, gamma0, theta, rtol, max_steps):
-    """Newton iterations from the closed form, elementwise; returns (Δ, v) stacked, residual, steps, converged."""
+    """Newton iterations from the closed form, elementwise; returns (Δ, v) stacked, steps, result."""
     consts = layout_constants(jnp, R, l, gamma0, theta)
     scale = first_order_amplitude(consts)
     tiny = jnp.finfo(theta.dtype).tiny
-    shape = jnp.broadcast_shapes(*(jnp.shape(a) for a in (R, l, gamma0, theta)))
+    bad_input = _nonfinite_inputs(R, l, gamma0, theta)
+    shape = bad_input.shape
     guess = jnp.stack([jnp.broadcast_to(u, shape) for u in analytic_unknowns(jnp, consts, theta)])
+    zeros = jnp.zeros(shape, bool)
 
     def cond(carry):
-        n, _, _, done = carry
+        n, _, _, done, _ = carry
         return jnp.logical_and(n < max_steps, jnp.logical_not(jnp.all(done)))
 
     def body(carry):
         # (Δ, v) travel stacked in one array: XLA then computes the step in one
         # fusion instead of repeating the sines in one fusion per output.
-        n, x, steps, done = carry
+        n, x, steps, done, singular = carry
         d_delta, d_v = newton_step(*scaled_system(jnp, consts, x[0], x[1]))
         new = jnp.stack([x[0] + d_delta, x[1] + d_v])
         step = jnp.max(jnp.abs(new - x), axis=0)
         small = step <= rtol * (jnp.max(jnp.abs(new), axis=0) + scale) + tiny
+        # A non-finite step ends the point: a singular Jacobian (finite iterate), or NaN input.
+        broken = ~jnp.all(jnp.isfinite(new), axis=0)
+        active = jnp.logical_not(done)
         return (
             n + 1,
             jnp.where(done, x, new),
-            steps + jnp.logical_not(done).astype(jnp.int32),
-            jnp.logical_or(done, small),
+            steps + active.astype(jnp.int32),
+            done | small | broken,
+            singular | (active & broken & jnp.all(jnp.isfinite(x), axis=0)),
         )
 
-    start = (jnp.int32(0), guess, jnp.zeros(shape, jnp.int32), jnp.zeros(shape, bool))
-    _, x, steps, done = jax.lax.while_loop(cond, body, start)
-    residual = jnp.stack(scaled_system(jnp, consts, x[0], x[1])[0])
-    converged = jnp.logical_and(done, jnp.all(jnp.isfinite(residual), axis=0))
-    return x, residual, steps, converged
+    start = (jnp.int32(0), guess, jnp.zeros(shape, jnp.int32), zeros, zeros)
+    _, x, steps, done, singular = jax.lax.while_loop(cond, body, start)
+    result = code_where(done, RESULTS.successful, RESULTS.max_steps_reached)
+    result = code_where(singular & ~bad_input, RESULTS.singular_jacobian, result)
+    nonfinite = bad_input | ~jnp.all(jnp.isfinite(x), axis=0)
+    result = code_where(nonfinite & ~(singular & ~bad_input), RESULTS.nonfinite, result)
+    return x, steps, result
 
 
 def _implicit_solver(rtol, max_steps):
@@ -232,11 +281,39 @@ def _implicit_solver(rtol, max_steps):
             tuple(tangents[i] for i in active),
         )
         dx = jnp.stack(newton_step(dg, jacobian))
-        no_tangent = [np.zeros(a.shape, jax.dtypes.float0) for a in out[2:]]
-        return out, (jnp.broadcast_to(dx, x.shape), jnp.zeros_like(out[1]), *no_tangent)
+        no_tangent = [np.zeros(a.shape, jax.dtypes.float0) for a in out[1:]]
+        return out, (jnp.broadcast_to(dx, x.shape), *no_tangent)
 
     solve.defjvp(solve_jvp, symbolic_zeros=True)
     return solve
+
+
+def _analytic(R, l, gamma0, theta, corrections):
+    """The closed form plus ``corrections`` Newton steps with polynomial sines; (Δ, v)."""
+    consts = layout_constants(jnp, R, l, gamma0, theta)
+    delta, v = analytic_unknowns(jnp, consts, theta)
+    for _ in range(corrections):
+        d_delta, d_v = newton_step(*scaled_system(jnp, consts, delta, v, small_angles=True))
+        delta, v = delta + d_delta, v + d_v
+    return delta, v
+
+
+def _diagnostics(R, l, gamma0, theta, delta, v):
+    """Scaled residual (…, 2) and error estimate at (Δ, v), not differentiated.
+
+    The estimate is the next Newton step (exact sines), max(|dΔ|, |dv|),
+    relative to the first-order amplitude e(γ0)/|h| of Δ: the relative error
+    of the small unknowns, to first order in it.
+    """
+    delta, v = jax.lax.stop_gradient(delta), jax.lax.stop_gradient(v)
+    R, l, gamma0, theta = (jax.lax.stop_gradient(a) for a in (R, l, gamma0, theta))
+    consts = layout_constants(jnp, R, l, gamma0, theta)
+    residual, jacobian = scaled_system(jnp, consts, delta, v)
+    d_delta, d_v = newton_step(residual, jacobian)
+    scale = jnp.maximum(first_order_amplitude(consts), jnp.finfo(delta.dtype).tiny)
+    estimate = jnp.maximum(jnp.abs(d_delta), jnp.abs(d_v)) / scale
+    estimate = jnp.where(jnp.isfinite(d_delta) & jnp.isfinite(d_v), estimate, jnp.nan)
+    return jnp.stack(jnp.broadcast_arrays(*residual), axis=-1), estimate
 
 
 @pytree_dataclass
@@ -252,9 +329,13 @@ class HalfshaftSolution:
         residual: scaled residual pair (g1, g2) at the solution,
             dimensionless (the pair 2.9.1–2.9.2 divided by 2 l sin(γ0/2)),
             shape (..., 2). Diagnostic only: not differentiated.
-        converged: True where the Newton step met the tolerance within the
-            iteration cap and the residual is finite.
-        iterations: Newton steps taken.
+        error_estimate: the next Newton step at the answer, relative to the
+            first-order amplitude e(γ0)/|h| of Δ [–]: roundoff (≲ 1e-13 in
+            float64) for Newton, the truncation error for Analytic. Not
+            differentiated.
+        result: :class:`~tripodjax.RESULTS` code per point (int32).
+        converged: ``result == RESULTS.successful``.
+        iterations: Newton steps taken (the fixed corrections for Analytic).
     """
 
     theta: jax.Array
@@ -263,84 +344,102 @@ class HalfshaftSolution:
     delta: jax.Array
     delta_gamma: jax.Array
     residual: jax.Array
+    error_estimate: jax.Array
+    result: jax.Array
     converged: jax.Array
     iterations: jax.Array
 
 
-@functools.partial(jax.jit, static_argnames=("max_steps",))
-def solve_halfshaft(layout, theta, *, rtol=None, max_steps=DEFAULT_MAX_STEPS):
+def solve_halfshaft(
+    layout, theta, solver="newton", *, throw=False, rtol=solvers._UNSET, max_steps=solvers._UNSET
+):
     """Solve ψ(θ) and γ(θ) of a halfshaft for every input angle in ``theta``.
 
     Args:
         layout: a :class:`~tripodjax.Layout` (scalar fields, or fields that
             broadcast against ``theta``).
         theta: input angles θ [rad], any shape.
-        rtol: Newton stops when the largest step is at most
-            ``rtol · (max(|Δ|, |v|) + e(γ0)/|h|)``, the last term being the
-            first-order amplitude of Δ; default :func:`default_rtol` of the
-            working dtype (32 ε: 7e-15 in float64, 4e-6 in float32; the last
-            step is applied, so the error is far below that).
-        max_steps: iteration cap; points that hit it report ``converged=False``.
+        solver: :class:`~tripodjax.solvers.Newton` (default, ``"newton"``),
+            :class:`~tripodjax.solvers.Analytic` (``"analytic"``) or
+            ``"closed_form"``; see :mod:`tripodjax.solvers`.
+        throw: raise :class:`~tripodjax.solvers.SolverError` naming the first
+            point (index and θ) whose result is not successful. Needs concrete
+            values: works outside ``jax.jit`` only (inside, read ``result``).
+        rtol, max_steps: older spelling of ``solver=Newton(rtol, max_steps)``.
 
     Returns:
         :class:`HalfshaftSolution` with arrays of the broadcast shape.
 
-    Jit-compiled (``max_steps`` is static). Newton starts from the closed
-    form of :func:`analytic_halfshaft` and usually takes 3 steps. Every float
-    field is differentiable (``jax.jvp``/``jax.grad``, any order) w.r.t. θ and
-    the layout; derivatives come from the implicit function theorem, not from
-    the iterations. Works in float32 and float64: the working dtype is that
-    of ``theta`` and the layout combined.
+    Jit-compiled (the solver is static). Newton starts from the closed form
+    and takes at most 5 steps in float64 (3 in float32) over the domain.
+    Every float field is differentiable (``jax.jvp``/``jax.grad``, any order)
+    w.r.t. θ and the layout. Works in float32 and float64: the working dtype
+    is that of ``theta`` and the layout combined. Non-finite input gives NaN
+    and ``RESULTS.nonfinite`` at that point, never a finite answer.
     """
+    check_layout(layout)
+    check_real("theta", theta)  # the type only: a NaN θ is answered with NaN and a code
+    solver = solvers.resolve_legacy(solver, rtol=rtol, max_steps=max_steps)
+    sol = _solve(layout, theta, solver)
+    if throw:
+        raise_first_failure(sol.result, sol.theta, "solve_halfshaft")
+    return sol
+
+
+@functools.partial(jax.jit, static_argnames=("solver",))
+def _solve(layout, theta, solver):
     R, l, gamma0, theta = _working_arrays(layout, theta)
-    if rtol is None:
-        rtol = default_rtol(theta.dtype)
-    x, residual, steps, converged = _implicit_solver(rtol, max_steps)(R, l, gamma0, theta)
-    return _solution(theta, gamma0, x[0], x[1], jnp.moveaxis(residual, 0, -1), converged, steps)
+    bad_input = _nonfinite_inputs(R, l, gamma0, theta)
+    if isinstance(solver, Newton):
+        rtol = default_rtol(theta.dtype) if solver.rtol is None else solver.rtol
+        x, steps, result = _implicit_solver(rtol, solver.max_steps)(R, l, gamma0, theta)
+        delta, v = x[0], x[1]
+        residual, estimate = _diagnostics(R, l, gamma0, theta, delta, v)
+    else:
+        delta, v = _analytic(R, l, gamma0, theta, solver.corrections)
+        residual, estimate = _diagnostics(R, l, gamma0, theta, delta, v)
+        delta, v = jnp.broadcast_arrays(delta, v)
+        steps = jnp.full(delta.shape, solver.corrections, jnp.int32)
+        bad = bad_input | ~(jnp.isfinite(delta) & jnp.isfinite(v))
+        result = code_where(estimate > solver.validity, RESULTS.outside_validity, 0)
+        result = code_where(bad, RESULTS.nonfinite, result)
+    # Non-finite input gives NaN, never a finite answer (e.g. l = ±inf makes the pair
+    # trivially solvable): a factor NaN/1, so the θ- and layout-derivatives are NaN there too.
+    nan_where_bad = jnp.where(bad_input, jnp.nan, 1.0).astype(delta.dtype)
+    delta, v = delta * nan_where_bad, v * nan_where_bad
+    return _solution(theta, gamma0, delta, v, residual, estimate, result, steps)
 
 
-@jax.jit
-def analytic_halfshaft(layout, theta):
-    """Closed-form approximation of ψ(θ), γ(θ): the seed's first order plus the γ ripple.
+def analytic_halfshaft(layout, theta, corrections=1):
+    """The :class:`~tripodjax.solvers.Analytic` level (``corrections=0``: the closed form alone).
 
-    No iteration; θ enters only through sin 3θ and cos 3θ. With A = e(γ0)/|h|:
-
-    - first order (§2.11): γ ≈ γ0 and Δ1 = −A sin 3θ (asin dropped: A ≤ 0.05);
-    - γ ripple: 2.9.2 − 2.9.3 linearised in γ − γ0 at ψ1 = θ − Δ1,
-
-          γ − γ0 ≈ [2R sin²(γ0/2) sin²(3ψ1/2) + 2h sin²(Δ1/2)] / (l cos γ0 + (R/2) sin γ0),
-
-      ≈ (e/l)(1 − cos 3θ) to first order (sin²(3ψ1/2) and sin 3ψ1 are
-      expanded to first order in Δ1);
-    - Δ from 2.9.1 with that γ, e(γ) linearised in γ − γ0, and asin to third order.
-
-    Written in the scaled unknowns of :func:`scaled_residual`, so it is regular
-    at γ0 = 0. Over R 18–42 mm, l 300–800 mm, γ0 5–25° it gives delta_pp within
-    0.03 %, irregularity within 0.4 % and gamma_pp within 7 % of the converged
-    solve (the first order alone misses the irregularity by 2.5 %), at a small
-    fraction of its cost.
-
-    Returns a :class:`HalfshaftSolution` with ``iterations = 0``,
-    ``converged = True`` (nothing is solved) and ``residual`` the closed
-    form's residual in the scaled pair — its truncation error.
+    The closed form of :func:`analytic_unknowns` — the seed's first order
+    (§2.11) plus the γ ripple — then ``corrections`` Newton steps whose sines
+    of small angles are Taylor polynomials. See
+    :class:`~tripodjax.solvers.Analytic` for the measured accuracy.
     """
-    R, l, gamma0, theta = _working_arrays(layout, theta)
-    delta, v = analytic_unknowns(jnp, layout_constants(jnp, R, l, gamma0, theta), theta)
-    residual = jax.lax.stop_gradient(
-        scaled_residual(R, l, gamma0, theta, jnp.stack([delta, v], axis=-1))
-    )
-    return _solution(
-        theta,
-        gamma0,
-        delta,
-        v,
-        residual,
-        jnp.ones(delta.shape, bool),
-        jnp.zeros(delta.shape, jnp.int32),
+    return solve_halfshaft(layout, theta, Analytic(corrections=corrections))
+
+
+def raise_first_failure(result, theta, what, index_prefix=""):
+    """Raise SolverError naming the first point whose ``result`` is not successful (concrete only)."""
+    if isinstance(result, jax.core.Tracer):
+        raise TypeError(f"{what}: throw=True needs concrete values; it works outside jax.jit only")
+    codes = np.asarray(result)
+    bad = np.flatnonzero(codes != RESULTS.successful)
+    if not bad.size:
+        return
+    index = np.unravel_index(int(bad[0]), codes.shape)
+    theta = np.broadcast_to(np.asarray(theta), codes.shape)[index]
+    code = RESULTS(int(codes[index]))
+    where = ", ".join(str(int(i)) for i in index)
+    raise SolverError(
+        f"{what}: {index_prefix}point [{where}] at θ = {float(theta):.6g} rad: "
+        f"{code.name} ({code.describe()}); {bad.size} of {codes.size} points not successful"
     )
 
 
-def _solution(theta, gamma0, delta, v, residual, converged, iterations):
+def _solution(theta, gamma0, delta, v, residual, estimate, result, iterations):
     """A HalfshaftSolution from the unknowns (Δ, v), every field of the broadcast shape."""
     theta, gamma0 = jnp.broadcast_to(theta, delta.shape), jnp.broadcast_to(gamma0, delta.shape)
     delta_gamma = gamma0 * v
@@ -350,7 +449,9 @@ def _solution(theta, gamma0, delta, v, residual, converged, iterations):
         gamma=gamma0 + delta_gamma,
         delta=delta,
         delta_gamma=delta_gamma,
-        residual=residual,
-        converged=converged,
-        iterations=iterations,
+        residual=jnp.broadcast_to(residual, delta.shape + (2,)),
+        error_estimate=jnp.broadcast_to(estimate, delta.shape),
+        result=jnp.broadcast_to(result, delta.shape),
+        converged=jnp.broadcast_to(result == RESULTS.successful, delta.shape),
+        iterations=jnp.broadcast_to(iterations, delta.shape),
     )

@@ -16,6 +16,14 @@ the torque a joint carries at the contact pressure p (physics brief §4):
 
 Units: lengths mm, pressures MPa, loads N, torques N·m at the API, speeds rpm,
 angles rad.
+
+Inputs are checked at the Python boundary (concrete values only): a
+``TypeError`` or ``ValueError`` names the argument, the value and what is
+allowed. The conformity must be at least :data:`MIN_CONFORMITY` = 1.0005
+(see :func:`tripodjax._checks.check_conformity`), ``n_rollers`` an integer ≥ 1.
+Inside ``jit`` nothing can raise: a non-finite or out-of-range input gives NaN,
+and the results that depend on the Hertz ellipse-ratio solve carry a per-point
+``result`` code (:class:`tripodjax.results.RESULTS`).
 """
 
 import math
@@ -24,8 +32,43 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from tripodjax._checks import check, check_non_negative, check_positive, check_shares
+from tripodjax._checks import (
+    MIN_CONFORMITY,  # re-exported: hertz.MIN_CONFORMITY
+    check,
+    check_choice,
+    check_conformity,
+    check_integer,
+    check_non_negative,
+    check_positive,
+    check_range,
+    check_shares,
+    checked_pytree_dataclass,
+)
 from tripodjax._pytree import pytree_dataclass
+from tripodjax.results import RESULTS, code_where, worst
+
+__all__ = [
+    "MIN_CONFORMITY",
+    "Capacities",
+    "Contact",
+    "ContactGeometry",
+    "HertzCoefficients",
+    "Life",
+    "LoadSpectrum",
+    "RESULTS",
+    "WorkingConditions",
+    "capacities",
+    "conformity_coefficient",
+    "contact_geometry",
+    "elliptic_integrals",
+    "hertz_coefficients",
+    "joint_life",
+    "life_hours",
+    "min_roller_diameter",
+    "mu_nu",
+    "roller_contact",
+    "torque_at_pressure",
+]
 
 YOUNG_MODULUS_STEEL = 208_000.0  # MPa
 POISSON_STEEL = 0.3
@@ -60,13 +103,38 @@ def _elliptic_agm(m, m1):
     return K, K * (1.0 - m * weighted), K * weighted
 
 
+def _nan_unless(ok, value):
+    """``value`` where ``ok``, NaN elsewhere (NaN, not a plausible number, for bad traced input)."""
+    value = jnp.asarray(value)
+    return jnp.where(ok, value, jnp.asarray(jnp.nan, value.dtype))
+
+
+def _finite(*values):
+    """Elementwise: every value finite (broadcast together)."""
+    ok = jnp.bool_(True)
+    for value in values:
+        ok = ok & jnp.isfinite(value)
+    return ok
+
+
+def _all_finite(*values):
+    """One flag: every element of every value finite."""
+    ok = jnp.bool_(True)
+    for value in values:
+        ok = ok & jnp.all(jnp.isfinite(jnp.asarray(value)))
+    return ok
+
+
 def elliptic_integrals(m):
     """Complete elliptic integrals of the first and second kind, (K(m), E(m)), 0 ≤ m < 1.
 
     Parameter convention m = k² (as SciPy's ``ellipk``/``ellipe``). Computed by
-    the arithmetic–geometric mean in JAX; differentiable; any dtype.
+    the arithmetic–geometric mean in JAX; differentiable; any dtype. A concrete
+    m outside [0, 1) raises ``ValueError``; a traced one gives NaN.
     """
+    check_range("m", m, 0.0, 1.0, high_open=True)
     m = jnp.asarray(m, jnp.result_type(m, 0.0))
+    m = _nan_unless((m >= 0) & (m < 1), m)
     K, E, _ = _elliptic_agm(m, 1.0 - m)
     return K, E
 
@@ -88,6 +156,7 @@ def _log_ratio_residual(t, log1m_cos_tau):
 
 
 def _newton_log_kappa(log1m_cos_tau, cos_tau):
+    """Newton on log κ; returns (t, result code): successful, max_steps_reached or nonfinite."""
     dtype = jnp.result_type(cos_tau)
     tol = 8.0 * float(jnp.finfo(dtype).eps)
     # Start from the usual power-law fit κ ≈ (R_x/R_y)^(2/π).
@@ -98,25 +167,37 @@ def _newton_log_kappa(log1m_cos_tau, cos_tau):
         t, n, _ = carry
         step = -_log_ratio_residual(t, log1m_cos_tau) / slope(t, log1m_cos_tau)
         t_new = jnp.maximum(t + step, 0.0)
-        return t_new, n + 1, jnp.abs(t_new - t) <= tol * (1.0 + t_new)
+        met = jnp.abs(t_new - t) <= tol * (1.0 + t_new)
+        # A non-finite iterate ends the loop too (it is flagged below, not iterated on).
+        return t_new, n + 1, met | ~jnp.isfinite(t_new)
 
     def cond(carry):
         _, n, done = carry
         return jnp.logical_and(n < _KAPPA_MAX_STEPS, jnp.logical_not(done))
 
-    t, _, _ = jax.lax.while_loop(cond, body, (t0, jnp.int32(0), jnp.bool_(False)))
-    return t
+    t, _, done = jax.lax.while_loop(cond, body, (t0, jnp.int32(0), ~jnp.isfinite(t0)))
+    code = code_where(done, RESULTS.successful, RESULTS.max_steps_reached)
+    code = code_where(jnp.isfinite(t), code, RESULTS.nonfinite)
+    return t, code
 
 
 def _log_kappa(cos_tau):
-    """log κ for one |cos τ| in [0, 1), by Newton with implicit derivatives."""
+    """(log κ, result code) for one cos τ in [0, 1), by Newton with implicit derivatives."""
     log1m = jnp.log1p(-cos_tau)
-    return jax.lax.custom_root(
+
+    def solve(f, t0):
+        t, code = _newton_log_kappa(log1m, cos_tau)
+        # custom_root differentiates its aux output too: carry the code as a float.
+        return t, code.astype(t.dtype)
+
+    t, code = jax.lax.custom_root(
         lambda t: _log_ratio_residual(t, log1m),
         jnp.zeros_like(cos_tau),
-        lambda f, t0: _newton_log_kappa(log1m, cos_tau),
+        solve,
         lambda g, y: y / g(jnp.ones_like(y)),
+        has_aux=True,
     )
+    return t, jax.lax.stop_gradient(code).astype(jnp.int32)
 
 
 @pytree_dataclass
@@ -127,33 +208,51 @@ class HertzCoefficients:
         kappa: ellipse ratio κ = a/b ≥ 1 [–].
         mu, nu: coefficients of the semi-axes a = μ·k, b = ν·k [–].
         mu_nu: the product μν used by the seed's conformity coefficient [–].
+        result: per-point code of the κ solve (int32,
+            :class:`~tripodjax.results.RESULTS`): ``successful``,
+            ``max_steps_reached`` or ``nonfinite`` (cos τ outside [0, 1) or
+            non-finite inside ``jit``; the coefficients are then NaN).
     """
 
     kappa: jax.Array
     mu: jax.Array
     nu: jax.Array
     mu_nu: jax.Array
+    result: jax.Array
+
+
+def _check_cos_tau(cos_tau, name="cos_tau"):
+    check_range(name, cos_tau, 0.0, 1.0, high_open=True)
 
 
 @jax.jit
-def hertz_coefficients(cos_tau):
-    """κ, μ, ν and μν from the curvature function cos τ (its magnitude is used), |cos τ| < 1.
-
-    Exact Hertz theory: the ellipse ratio solves the cos τ(κ) relation above by
-    Newton (derivatives from the implicit function theorem); no lookup table.
-    cos τ = 0 gives κ = μ = ν = 1; values approach infinity as |cos τ| → 1.
-    """
-    c = jnp.abs(jnp.asarray(cos_tau, jnp.result_type(cos_tau, 0.0)))
-    t = jnp.vectorize(_log_kappa)(c)
+def _hertz_coefficients(cos_tau):
+    c = jnp.asarray(cos_tau, jnp.result_type(cos_tau, 0.0))
+    c = _nan_unless((c >= 0) & (c < 1), c)
+    t, code = jnp.vectorize(_log_kappa)(c)
     kappa = jnp.exp(t)
     _, E, _ = _elliptic_agm(-jnp.expm1(-2.0 * t), jnp.exp(-2.0 * t))
     mu = jnp.cbrt(2.0 * kappa**2 * E / jnp.pi)
     nu = jnp.cbrt(2.0 * E / (jnp.pi * kappa))
-    return HertzCoefficients(kappa=kappa, mu=mu, nu=nu, mu_nu=mu * nu)
+    return HertzCoefficients(kappa=kappa, mu=mu, nu=nu, mu_nu=mu * nu, result=code)
+
+
+def hertz_coefficients(cos_tau):
+    """κ, μ, ν and μν from the curvature function cos τ, 0 ≤ cos τ < 1.
+
+    Exact Hertz theory: the ellipse ratio solves the cos τ(κ) relation above by
+    Newton (derivatives from the implicit function theorem); no lookup table.
+    cos τ = 0 gives κ = μ = ν = 1; values approach infinity as cos τ → 1.
+    A concrete cos τ outside [0, 1) (or non-finite) raises ``ValueError``; a
+    traced one gives NaN coefficients and ``result = RESULTS.nonfinite``.
+    Jit-compiled.
+    """
+    _check_cos_tau(cos_tau)
+    return _hertz_coefficients(cos_tau)
 
 
 def mu_nu(cos_tau):
-    """The Hertz product μν for the curvature function cos τ (see :func:`hertz_coefficients`)."""
+    """The Hertz product μν for the curvature function cos τ in [0, 1) (see :func:`hertz_coefficients`)."""
     return hertz_coefficients(cos_tau).mu_nu
 
 
@@ -178,9 +277,17 @@ class ContactGeometry:
 
 
 def contact_geometry(conformity):
-    """Contact geometry of a roller in a straight track of conformity Ψ = 2 R_g / d > 1."""
-    check("conformity", conformity, lambda a: np.isfinite(a) & (a > 1), "conformity Ψ > 1")
+    """Contact geometry of a roller in a straight track of conformity Ψ = 2 R_g / d.
+
+    Ψ ≥ :data:`MIN_CONFORMITY` = 1.0005 (Ψ − 1 ≥ 5·10⁻⁴; the workbook's
+    experience range is 1.002–1.008; see
+    :func:`tripodjax._checks.check_conformity` for why). A concrete Ψ below it
+    or non-finite raises ``ValueError``; inside ``jit`` a non-finite Ψ or
+    Ψ ≤ 1 gives NaN.
+    """
+    check_conformity(conformity)
     conformity = jnp.asarray(conformity, jnp.result_type(conformity, 0.0))
+    conformity = _nan_unless(jnp.isfinite(conformity) & (conformity > 1), conformity)
     chi_q = -1.0 / conformity
     chi_l = jnp.zeros_like(chi_q)
     denominator = 2.0 + chi_q + chi_l
@@ -192,10 +299,17 @@ def contact_geometry(conformity):
     )
 
 
-def conformity_coefficient(conformity):
-    """C_p = (858/(μν)) (dΣρ)^(2/3) [MPa·N^(-1/3)·mm^(2/3)] for steel on steel."""
+def _conformity_coefficient(conformity):
+    """(C_p, μν, κ-solve code) from a checked conformity."""
     geometry = contact_geometry(conformity)
-    return HERTZ_STEEL / mu_nu(geometry.cos_tau) * geometry.d_sum_rho ** (2.0 / 3.0)
+    coefficients = _hertz_coefficients(geometry.cos_tau)
+    C_p = HERTZ_STEEL / coefficients.mu_nu * geometry.d_sum_rho ** (2.0 / 3.0)
+    return C_p, coefficients.mu_nu, coefficients.result
+
+
+def conformity_coefficient(conformity):
+    """C_p = (858/(μν)) (dΣρ)^(2/3) [MPa·N^(-1/3)·mm^(2/3)] for steel on steel (Ψ ≥ 1.0005)."""
+    return _conformity_coefficient(conformity)[0]
 
 
 @pytree_dataclass
@@ -207,11 +321,20 @@ class Contact:
         a: semi-axis of the contact ellipse across the track, in the
             conformal groove direction [mm].
         b: semi-axis along the track, in the rolling direction [mm].
+        result: per-point code (int32, :class:`~tripodjax.results.RESULTS`):
+            the κ solve's, or ``nonfinite`` where an input or the answer is
+            not finite (the fields are then NaN).
     """
 
     p_max: jax.Array
     a: jax.Array
     b: jax.Array
+    result: jax.Array
+
+
+def _check_elastic(young_modulus, poisson):
+    check_positive(young_modulus=young_modulus)
+    check_range("poisson", poisson, -1.0, 0.5, low_open=True, high_open=True)
 
 
 def roller_contact(
@@ -221,25 +344,46 @@ def roller_contact(
 
     a = μ k, b = ν k with k = (3 Q (1 − ν_P²) / (E Σρ))^(1/3), Σρ = dΣρ / d, and
     p_max = 3Q / (2π a b); for steel this is the seed's 858/(μν) (Q Σρ²)^(1/3).
+
+    Args: load Q ≥ 0 [N]; d > 0 [mm]; conformity Ψ ≥ 1.0005; young_modulus
+    E > 0 [MPa]; poisson ν_P in (−1, 0.5) [–]. All finite.
     """
     check_non_negative("load", load, " N")
-    check_positive(d=d, young_modulus=young_modulus)
+    check_positive(d=d)
+    check_conformity(conformity)
+    _check_elastic(young_modulus, poisson)
     geometry = contact_geometry(conformity)
-    coefficients = hertz_coefficients(geometry.cos_tau)
+    coefficients = _hertz_coefficients(geometry.cos_tau)
     sum_rho = geometry.d_sum_rho / d
     k = jnp.cbrt(3.0 * load * (1.0 - poisson**2) / (young_modulus * sum_rho))
     a, b = coefficients.mu * k, coefficients.nu * k
     area = jnp.where(a * b > 0, a * b, 1.0)
-    return Contact(p_max=jnp.where(a * b > 0, 1.5 * load / (jnp.pi * area), 0.0), a=a, b=b)
+    p_max = jnp.where(a * b > 0, 1.5 * load / (jnp.pi * area), 0.0)
+    ok = _finite(load, d, young_modulus, poisson, p_max, a, b)
+    code = worst(coefficients.result, code_where(ok, RESULTS.successful, RESULTS.nonfinite))
+    return Contact(
+        p_max=_nan_unless(ok, p_max), a=_nan_unless(ok, a), b=_nan_unless(ok, b), result=code
+    )
 
 
 # --------------------------------------------------------------------------- capacities and sizing
 
 
-def torque_at_pressure(
-    pressure, d, R, *, C_p, C_s, n_rollers=3, pressure_angle=math.pi / 2, helix_angle=0.0, gamma=0.0
-):
-    """M(p) = ½(1 + cos γ) n_R (p/(C_s C_p))³ d² R sin ε cos ζ, returned in N·m."""
+def _check_n_rollers(n_rollers):
+    check_integer("n_rollers", n_rollers, minimum=1)
+
+
+_NO_GAMMA = object()
+
+
+def _check_angles(pressure_angle, helix_angle, gamma=_NO_GAMMA):
+    check_range("pressure_angle", pressure_angle, 0.0, math.pi / 2, low_open=True, unit=" rad")
+    check_range("helix_angle", helix_angle, 0.0, math.pi / 2, high_open=True, unit=" rad")
+    if gamma is not _NO_GAMMA:
+        check_range("gamma", gamma, 0.0, math.pi / 2, high_open=True, unit=" rad")
+
+
+def _torque_at_pressure(pressure, d, R, C_p, C_s, n_rollers, pressure_angle, helix_angle, gamma):
     load_factor = (pressure / (C_s * C_p)) ** 3
     torque_nmm = (
         0.5
@@ -251,7 +395,27 @@ def torque_at_pressure(
         * jnp.sin(pressure_angle)
         * jnp.cos(helix_angle)
     )
-    return torque_nmm / 1000.0
+    ok = _finite(pressure, d, R, C_p, C_s, n_rollers, pressure_angle, helix_angle, gamma)
+    return _nan_unless(ok, torque_nmm / 1000.0)
+
+
+def torque_at_pressure(
+    pressure, d, R, *, C_p, C_s, n_rollers=3, pressure_angle=math.pi / 2, helix_angle=0.0, gamma=0.0
+):
+    """M(p) = ½(1 + cos γ) n_R (p/(C_s C_p))³ d² R sin ε cos ζ, returned in N·m.
+
+    Args: pressure p ≥ 0 [MPa]; d, R > 0 [mm]; C_p > 0
+    [MPa·N^(-1/3)·mm^(2/3)]; C_s > 0 [–]; n_rollers an integer ≥ 1;
+    pressure_angle ε in (0, π/2], helix_angle ζ in [0, π/2), gamma in
+    [0, π/2) [rad]. All finite; inside ``jit`` a non-finite input gives NaN.
+    """
+    check_non_negative("pressure", pressure, " MPa")
+    check_positive(d=d, R=R, C_p=C_p, C_s=C_s)
+    _check_n_rollers(n_rollers)
+    _check_angles(pressure_angle, helix_angle, gamma)
+    return _torque_at_pressure(
+        pressure, d, R, C_p, C_s, n_rollers, pressure_angle, helix_angle, gamma
+    )
 
 
 @pytree_dataclass
@@ -265,6 +429,9 @@ class Capacities:
         M_sd: short-lasting dynamic capacity at P_sd and the working angle [N·m].
         C_p: conformity coefficient [MPa·N^(-1/3)·mm^(2/3)].
         mu_nu: Hertz product μν [–].
+        result: per-point code (int32, :class:`~tripodjax.results.RESULTS`):
+            the κ solve's, or ``nonfinite`` where an input or a capacity is
+            not finite (that capacity is then NaN).
     """
 
     M_s: jax.Array
@@ -272,6 +439,7 @@ class Capacities:
     M_sd: jax.Array
     C_p: jax.Array
     mu_nu: jax.Array
+    result: jax.Array
 
 
 def capacities(
@@ -291,33 +459,38 @@ def capacities(
     """Static and dynamic torque capacities of a joint with roller diameter d and PCR R [mm].
 
     Args:
-        d: roller diameter [mm]; R: track pitch-circle radius [mm].
-        conformity: Ψ = 2 R_g / d > 1 (experience range 1.002–1.008).
+        d: roller diameter [mm]; R: track pitch-circle radius [mm]; both > 0.
+        conformity: Ψ = 2 R_g / d ≥ 1.0005 (experience range 1.002–1.008;
+            :data:`MIN_CONFORMITY`).
         P_s, P_d, P_sd: allowed static, long-lasting and short-lasting
-            dynamic contact pressures [MPa].
-        C_s: safety coefficient on the pressure [–].
-        n_rollers: 3 for a tripod; pressure_angle ε [rad] (π/2 for a tripod);
-        helix_angle ζ [rad] (0); gamma: working angle [rad] for M_d and M_sd.
+            dynamic contact pressures [MPa], > 0.
+        C_s: safety coefficient on the pressure [–], > 0.
+        n_rollers: an integer ≥ 1, 3 for a tripod; pressure_angle ε in
+            (0, π/2] [rad] (π/2 for a tripod); helix_angle ζ in [0, π/2)
+            [rad] (0); gamma: working angle in [0, π/2) [rad] for M_d and M_sd.
 
+    Every value finite; concrete values are checked (``ValueError`` /
+    ``TypeError`` naming the argument). Inside ``jit`` a non-finite input
+    gives NaN capacities and ``result = RESULTS.nonfinite``.
     Differentiable w.r.t. d, R, the conformity and the pressures; any dtype.
     """
     check_positive(d=d, R=R, P_s=P_s, P_d=P_d, P_sd=P_sd, C_s=C_s)
-    geometry = contact_geometry(conformity)
-    product = mu_nu(geometry.cos_tau)
-    C_p = HERTZ_STEEL / product * geometry.d_sum_rho ** (2.0 / 3.0)
-    common = dict(
-        C_p=C_p,
-        C_s=C_s,
-        n_rollers=n_rollers,
-        pressure_angle=pressure_angle,
-        helix_angle=helix_angle,
-    )
+    check_conformity(conformity)
+    _check_n_rollers(n_rollers)
+    _check_angles(pressure_angle, helix_angle, gamma)
+    C_p, product, kappa_code = _conformity_coefficient(conformity)
+    common = (C_p, C_s, n_rollers, pressure_angle, helix_angle)
+    M_s = _torque_at_pressure(P_s, d, R, *common, 0.0)
+    M_d = _torque_at_pressure(P_d, d, R, *common, gamma)
+    M_sd = _torque_at_pressure(P_sd, d, R, *common, gamma)
+    ok = _finite(M_s, M_d, M_sd)
     return Capacities(
-        M_s=torque_at_pressure(P_s, d, R, gamma=0.0, **common),
-        M_d=torque_at_pressure(P_d, d, R, gamma=gamma, **common),
-        M_sd=torque_at_pressure(P_sd, d, R, gamma=gamma, **common),
+        M_s=M_s,
+        M_d=M_d,
+        M_sd=M_sd,
         C_p=C_p,
         mu_nu=product,
+        result=worst(kappa_code, code_where(ok, RESULTS.successful, RESULTS.nonfinite)),
     )
 
 
@@ -346,20 +519,27 @@ def min_roller_diameter(
     It reproduces the workbook's 37.654 mm but is dimensionally inconsistent
     (pressure to the power 2 where Hertz gives 3); kept for reproduction only.
 
+    Args: M_max, R_over_d, P_s, C_s > 0; conformity Ψ ≥ 1.0005; n_rollers an
+    integer ≥ 1; angles as :func:`capacities`; all finite (NaN inside ``jit``
+    for a non-finite input).
+
     Returns:
         (d_min, R_min) with R_min = (R/d)·d_min.
     """
-    if rule not in SIZING_RULES:
-        raise ValueError(f"rule = {rule!r} is not allowed; allowed: {', '.join(SIZING_RULES)}")
+    check_choice("rule", rule, SIZING_RULES)
     check_positive(M_max=M_max, R_over_d=R_over_d, P_s=P_s, C_s=C_s)
-    C_p = conformity_coefficient(conformity)
+    check_conformity(conformity)
+    _check_n_rollers(n_rollers)
+    _check_angles(pressure_angle, helix_angle)
+    C_p = _conformity_coefficient(conformity)[0]
     geometry_factor = n_rollers * R_over_d * jnp.sin(pressure_angle) * jnp.cos(helix_angle)
     torque_nmm = 1000.0 * M_max
     if rule == "consistent":
         d3 = torque_nmm / (geometry_factor * (P_s / (C_s * C_p)) ** 3)
     else:
         d3 = (C_p * C_s / P_s) ** 2 * torque_nmm / geometry_factor
-    d_min = jnp.cbrt(d3)
+    ok = _finite(M_max, R_over_d, P_s, C_s, C_p, n_rollers, pressure_angle, helix_angle, d3)
+    d_min = _nan_unless(ok, jnp.cbrt(d3))
     return d_min, R_over_d * d_min
 
 
@@ -368,31 +548,59 @@ def min_roller_diameter(
 RATING_HOURS_RPM = 365_000.0  # 500 h at 730 rpm at M = M_d, the catalogues' rating (4.2.2)
 
 
+def _life_hours(M_d, torque, speed, share):
+    M_d = jnp.asarray(M_d)[..., None]
+    torque, speed, share = (
+        jnp.atleast_1d(jnp.asarray(x, M_d.dtype)) for x in (torque, speed, share)
+    )
+    damage_rate = share * speed * (torque / M_d) ** 3 / RATING_HOURS_RPM
+    ok = jnp.all(_finite(M_d, torque, speed, share), axis=-1)
+    return _nan_unless(ok, 1.0 / jnp.sum(damage_rate, axis=-1))
+
+
 def life_hours(M_d, torque, speed, share):
     """Palmgren–Miner life in hours over a load spectrum (4.2.1, 4.2.2).
 
     L_h,i = (365000 / n_i) (M_d / M_i)³ and 1/L_h = Σ a_i / L_h,i, over the
     last axis of ``torque`` [N·m], ``speed`` n [rpm] and ``share`` a [–];
     ``M_d`` [N·m] may carry leading axes (one life per entry). A case with zero
-    torque or speed does no damage.
+    torque or speed does no damage (a spectrum that does none lives for ever:
+    ``inf``). M_d > 0, torque ≥ 0, speed ≥ 0, shares ≥ 0 summing to 1, all
+    finite; inside ``jit`` a non-finite input gives NaN.
     """
-    M_d = jnp.asarray(M_d)[..., None]
-    torque, speed, share = (
-        jnp.atleast_1d(jnp.asarray(x, M_d.dtype)) for x in (torque, speed, share)
-    )
-    damage_rate = share * speed * (torque / M_d) ** 3 / RATING_HOURS_RPM
-    return 1.0 / jnp.sum(damage_rate, axis=-1)
+    check_positive(M_d=M_d)
+    check_non_negative("torque", torque, " N·m")
+    check_non_negative("speed", speed, " rpm")
+    check_shares("share", share)
+    return _life_hours(M_d, torque, speed, share)
 
 
-@pytree_dataclass
+def _check_one_shape(owner, fields):
+    shapes = {name: np.shape(value) for name, value in fields.items() if concrete_shape(value)}
+    if len(set(shapes.values())) > 1:
+        shown = ", ".join(f"{name} {shape}" for name, shape in shapes.items())
+        raise ValueError(
+            f"{owner} needs fields of one shape (1-D arrays of one length); got {shown}"
+        )
+
+
+def concrete_shape(value):
+    """True when ``value`` has a shape to compare (not traced)."""
+    return not isinstance(value, jax.core.Tracer)
+
+
+@checked_pytree_dataclass
 class LoadSpectrum:
     """A load spectrum: each case is a torque applied at a speed for a share of the time.
 
     Attributes (1-D arrays of one length):
-        torque: joint torque M_i [N·m].
-        speed: joint speed n_i [rpm].
-        vehicle_speed: vehicle speed V_i [km/h] (for the life in km, 4.2.3).
-        share: share a_i of the running time [–], summing to 1.
+        torque: joint torque M_i [N·m], ≥ 0.
+        speed: joint speed n_i [rpm], ≥ 0.
+        vehicle_speed: vehicle speed V_i [km/h] (for the life in km, 4.2.3), ≥ 0.
+        share: share a_i of the running time [–], ≥ 0, summing to 1.
+
+    All finite real numbers; checked when built from concrete values (not
+    when JAX rebuilds one, nor for traced fields).
     """
 
     torque: jax.Array
@@ -405,15 +613,23 @@ class LoadSpectrum:
         check_non_negative("LoadSpectrum.speed", self.speed, " rpm")
         check_non_negative("LoadSpectrum.vehicle_speed", self.vehicle_speed, " km/h")
         check_shares("LoadSpectrum.share", self.share)
+        _check_one_shape(
+            "LoadSpectrum",
+            {name: getattr(self, name) for name in ("torque", "speed", "vehicle_speed", "share")},
+        )
 
 
-@pytree_dataclass
+@checked_pytree_dataclass
 class WorkingConditions:
     """Working conditions of the joint (e.g. static, steer left/right, bound, rebound).
 
     Attributes (1-D arrays of one length):
-        angle: working articulation angle γ_j [rad]; it enters through M_d(γ).
-        share: share w_j of the mileage spent in the condition [–], summing to 1.
+        angle: working articulation angle γ_j [rad], 0 ≤ γ_j < π/2; it enters
+            through M_d(γ).
+        share: share w_j of the mileage spent in the condition [–], ≥ 0,
+            summing to 1.
+
+    All finite real numbers; checked when built from concrete values.
     """
 
     angle: jax.Array
@@ -424,9 +640,10 @@ class WorkingConditions:
             "WorkingConditions.angle",
             self.angle,
             lambda a: np.isfinite(a) & (a >= 0) & (a < math.pi / 2),
-            "0 ≤ angle < π/2 rad",
+            "0 ≤ angle < π/2 rad (finite)",
         )
         check_shares("WorkingConditions.share", self.share)
+        _check_one_shape("WorkingConditions", {"angle": self.angle, "share": self.share})
 
 
 @pytree_dataclass
@@ -438,12 +655,16 @@ class Life:
         km: combined life in kilometres L_s = L_h · V_m (4.2.3) [km].
         hours_per_condition: life L_h,j if the joint ran in condition j only [h].
         M_d_per_condition: long-lasting capacity M_d(γ_j) [N·m].
+        result: code (int32, :class:`~tripodjax.results.RESULTS`): the κ
+            solve's, or ``nonfinite`` where an input or the life is NaN (an
+            infinite life, from a spectrum that does no damage, is successful).
     """
 
     hours: jax.Array
     km: jax.Array
     hours_per_condition: jax.Array
     M_d_per_condition: jax.Array
+    result: jax.Array
 
 
 def joint_life(
@@ -464,24 +685,53 @@ def joint_life(
     For each working condition j the capacity M_d(γ_j) gives the spectrum's
     life L_h,j (4.2.2, 4.2.1); the conditions combine by Miner's rule on their
     shares, 1/L_h = Σ w_j / L_h,j, and L_s = L_h · V_m with V_m = Σ a_i V_i.
+
+    Args: d, R > 0 [mm]; ``spectrum`` a :class:`LoadSpectrum`; ``conditions``
+    a :class:`WorkingConditions`; conformity Ψ ≥ 1.0005; P_d > 0 [MPa];
+    C_s > 0; n_rollers an integer ≥ 1; angles as :func:`capacities`. Inside
+    ``jit`` a non-finite input gives a NaN life and ``result = nonfinite``.
     Differentiable w.r.t. d, R, the conformity and P_d.
     """
+    if not isinstance(spectrum, LoadSpectrum):
+        raise TypeError(
+            f"spectrum = {spectrum!r} ({type(spectrum).__name__}) is not allowed; "
+            "allowed: a hertz.LoadSpectrum"
+        )
+    if not isinstance(conditions, WorkingConditions):
+        raise TypeError(
+            f"conditions = {conditions!r} ({type(conditions).__name__}) is not allowed; "
+            "allowed: a hertz.WorkingConditions"
+        )
     check_positive(d=d, R=R, P_d=P_d, C_s=C_s)
-    C_p = conformity_coefficient(conformity)
-    M_d = torque_at_pressure(
+    check_conformity(conformity)
+    _check_n_rollers(n_rollers)
+    _check_angles(pressure_angle, helix_angle)
+    C_p, _, kappa_code = _conformity_coefficient(conformity)
+    M_d = _torque_at_pressure(
         P_d,
         d,
         R,
-        C_p=C_p,
-        C_s=C_s,
-        n_rollers=n_rollers,
-        pressure_angle=pressure_angle,
-        helix_angle=helix_angle,
-        gamma=jnp.asarray(conditions.angle),
+        C_p,
+        C_s,
+        n_rollers,
+        pressure_angle,
+        helix_angle,
+        jnp.asarray(conditions.angle),
     )
-    per_condition = life_hours(M_d, spectrum.torque, spectrum.speed, spectrum.share)
+    per_condition = _life_hours(M_d, spectrum.torque, spectrum.speed, spectrum.share)
     hours = 1.0 / jnp.sum(jnp.asarray(conditions.share) / per_condition)
     mean_speed = jnp.sum(jnp.asarray(spectrum.share) * jnp.asarray(spectrum.vehicle_speed))
+    ok = _all_finite(M_d, per_condition, conditions.share, spectrum.vehicle_speed)
+    ok = ok & ~jnp.isnan(hours) & ~jnp.isnan(mean_speed)
+    hours, km = _nan_unless(ok, hours), _nan_unless(ok, hours * mean_speed)
+    code = worst(
+        jnp.max(kappa_code),
+        code_where(ok & ~jnp.isnan(km), RESULTS.successful, RESULTS.nonfinite),
+    )
     return Life(
-        hours=hours, km=hours * mean_speed, hours_per_condition=per_condition, M_d_per_condition=M_d
+        hours=hours,
+        km=km,
+        hours_per_condition=per_condition,
+        M_d_per_condition=M_d,
+        result=code,
     )

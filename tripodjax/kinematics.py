@@ -1,4 +1,19 @@
-"""Kinematic metrics of a halfshaft over one revolution (seed §2.10, §2.11.3)."""
+"""Kinematic metrics of a halfshaft over one revolution (seed §2.10, §2.11.3).
+
+Every metric that is a small difference is formed from the solver's small
+unknowns, never from O(1) numbers: the irregularity as ptp(−dΔ/dθ) (not
+ptp(dψ/dθ) = ptp(1 − dΔ/dθ)), the γ ripple as ptp(γ − γ0) with γ − γ0 = γ0 v
+solved for directly, the roller stroke without the pitch radius R. float32
+then keeps them within 1e-6 … 1e-4 relative of float64 over the whole domain,
+down to (R/l)·γ0 ~ 1e-13.
+
+Metrics that grow linearly from γ0 = 0 (delta_pp → (R/(2l))·γ0, irregularity
+→ 1.5·(R/l)·γ0, roller_axial_stroke → 2R·γ0) are formed as a smooth scale
+times the peak-to-peak of a shape that has a finite limit at γ0 = 0, e.g.
+delta_pp = A·ptp(Δ/A) with A = e(γ0)/|h|. ``jax.grad`` at γ0 = 0 then returns
+the one-sided derivative instead of the 0 that max − min over tying samples
+gives.
+"""
 
 import functools
 
@@ -6,11 +21,17 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from tripodjax import joint
+from tripodjax import joint, solvers
 from tripodjax._pytree import pytree_dataclass
-from tripodjax.halfshaft import DEFAULT_MAX_STEPS, analytic_halfshaft, solve_halfshaft
-
-FIDELITIES = ("newton", "analytic")
+from tripodjax.halfshaft import (
+    _sinc,
+    _solve,
+    first_order_amplitude,
+    layout_constants,
+    raise_first_failure,
+)
+from tripodjax.layout import check_layout
+from tripodjax.results import RESULTS
 
 
 @pytree_dataclass
@@ -21,21 +42,31 @@ class KinematicMetrics:
         delta_pp: peak-to-peak input–output difference Δ = θ − ψ [rad]
             (seed figures 2.10.2–2.10.4; Δ ≈ −(delta_pp/2) sin 3θ).
         irregularity: transmission irregularity (Ω2max − Ω2min)/Ω1 [–] from
-            the exact dψ/dθ (§2.11.3).
+            the exact dψ/dθ (§2.11.3), as ptp(dΔ/dθ).
         gamma_pp: peak-to-peak instantaneous articulation angle [rad]
-            (figure 2.10.5).
+            (figure 2.10.5), as ptp(γ − γ0).
         gamma_max: largest instantaneous articulation angle [rad]
             (figure 2.10.6, the pot-clearance check).
-        ecc_max: largest spider-centre eccentricity e(γ) [mm] (figure 2.10.13).
+        ecc_max: largest spider-centre eccentricity e(γ) [mm] (2.5.9, figure 2.10.13).
         roller_stroke: radial stroke of a roller, max − min of its distance
-            from the spider centre [mm] (figure 2.10.9).
+            |r_i| = R + e(1 + 2 cos 2ψ_i) from the spider centre [mm]
+            (2.6.4, figure 2.10.9); vanishes like γ0².
         roller_radial_max: largest roller-centre distance |r_i| [mm].
+        roller_axial_stroke: axial travel of a roller along its track,
+            max − min over a revolution of Z_i = c − (R/2) tan γ
+            [2 cos ψ_i + (1 − cos γ) cos 3ψ] (2.6.2, with the spider plunge
+            c = l(cos γ0 − cos γ)) [mm]; ≈ 2R tan γ0 (the plunge the track
+            must allow).
         spider_orbit_x, spider_orbit_y: peak-to-peak of the spider centre's
             fixed-frame coordinates a and b [mm] (2.5.13).
         spider_orbit_z: peak-to-peak of Z* − c, the spider's axial
             oscillation relative to its frame [mm] (2.6.2).
-        converged: every angle's Newton solve met its tolerance.
+        converged: every angle's solve succeeded (``result == successful``).
         max_residual: largest scaled residual over the revolution [–].
+        error_estimate: largest per-angle error estimate over the revolution
+            [–] (see :class:`~tripodjax.HalfshaftSolution`): the relative
+            error of Δ and γ − γ0, roundoff for Newton.
+        result: worst :class:`~tripodjax.RESULTS` code over the revolution (int32).
     """
 
     delta_pp: jax.Array
@@ -45,11 +76,14 @@ class KinematicMetrics:
     ecc_max: jax.Array
     roller_stroke: jax.Array
     roller_radial_max: jax.Array
+    roller_axial_stroke: jax.Array
     spider_orbit_x: jax.Array
     spider_orbit_y: jax.Array
     spider_orbit_z: jax.Array
     converged: jax.Array
     max_residual: jax.Array
+    error_estimate: jax.Array
+    result: jax.Array
 
 
 def _check_n_theta(n_theta):
@@ -77,67 +111,141 @@ def _ptp(x, axis=None):
     return jnp.max(x, axis=axis) - jnp.min(x, axis=axis)
 
 
-def check_fidelity(fidelity):
-    if fidelity not in FIDELITIES:
-        raise ValueError(
-            f"fidelity = {fidelity!r} is not allowed; allowed: {', '.join(FIDELITIES)}"
-        )
-
-
-def revolution(layout, n_theta, fidelity, *, with_rates, rtol=None, max_steps=DEFAULT_MAX_STEPS):
+def revolution(layout, n_theta, solver="newton", *, with_rates):
     """The halfshaft solution over one period of an n_theta grid, and its θ-derivative.
 
-    Returns ``(solution, rates)``: two :class:`HalfshaftSolution`, the second
-    holding d(field)/dθ (forward-mode AD through the solve, so implicit for
-    ``"newton"``), or None when ``with_rates`` is False.
+    Args:
+        layout: a :class:`~tripodjax.Layout` with scalar fields.
+        n_theta: angles per revolution, a multiple of 6 (see :func:`period_grid`).
+        solver: a solver object or shorthand (:mod:`tripodjax.solvers`).
+        with_rates: also return the θ-derivatives.
+
+    Returns ``(solution, rates)``: two :class:`~tripodjax.HalfshaftSolution`,
+    the second holding d(field)/dθ (forward-mode AD through the solve, so
+    implicit for Newton), or None when ``with_rates`` is False. Form metrics
+    from them with :func:`metrics_from`; ``solution.result`` carries the status.
     """
-    check_fidelity(fidelity)
+    solver = solvers.resolve(solver)
     dtype = jnp.result_type(layout.R, layout.l, layout.gamma0, 0.0)
     theta = period_grid(n_theta, dtype)
-    if fidelity == "newton":
-        solve = functools.partial(solve_halfshaft, layout, rtol=rtol, max_steps=max_steps)
-    else:
-        solve = functools.partial(analytic_halfshaft, layout)
+    solve = functools.partial(_solve, layout, solver=solver)
     if not with_rates:
         return solve(theta), None
     return jax.jvp(solve, (theta,), (jnp.ones_like(theta),))
 
 
-# Each metric from (R, solution, rates); only those asked for are built.
-def _spider(R, sol):
-    return joint.spider_centre(R, sol.gamma, sol.theta, sol.psi)
+def _shape_of(x, scale, limit):
+    """x / scale, with its γ0 → 0 limit where the scale vanishes (or underflows).
+
+    A NaN x (non-finite input) stays NaN in the limit branch too (``0 · x``).
+    """
+    ok = scale > jnp.sqrt(jnp.finfo(x.dtype).tiny)
+    return jnp.where(ok, x * (1.0 / jnp.where(ok, scale, 1.0)), limit + 0.0 * x)
+
+
+class _Revolution:
+    """Quantities shared by several metrics, each built once and only when asked for."""
+
+    def __init__(self, layout, sol, rates):
+        self.sol, self.rates = sol, rates
+        dtype = sol.theta.dtype
+        self.R, self.l, self.gamma0 = (
+            jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0)
+        )
+
+    @functools.cached_property
+    def amplitude(self):
+        """A = e(γ0)/|h|, the first-order amplitude of Δ (0 at γ0 = 0, slope R/(4l))."""
+        return first_order_amplitude(layout_constants(jnp, self.R, self.l, self.gamma0, 0.0))
+
+    @functools.cached_property
+    def spider(self):
+        s = self.sol
+        return joint.spider_centre(self.R, s.gamma, s.theta, s.psi)
+
+    @functools.cached_property
+    def roller_radial_excess(self):
+        """|r_i| − R = e (1 + 2 cos 2ψ_i) [mm], without the large R."""
+        s = self.sol
+        e = joint.eccentricity(self.R, s.gamma)[..., None]
+        return e * (1.0 + 2.0 * jnp.cos(2.0 * joint.roller_angles(s.psi)))
+
+    def delta_pp(self):
+        limit = -jnp.sin(3.0 * self.sol.theta)
+        return self.amplitude * _ptp(_shape_of(self.sol.delta, self.amplitude, limit))
+
+    def irregularity(self):
+        limit = -3.0 * jnp.cos(3.0 * self.sol.theta)
+        return self.amplitude * _ptp(_shape_of(self.rates.delta, self.amplitude, limit))
+
+    def roller_axial_stroke(self):
+        """R tan γ0 · ptp(Z_i / (R tan γ0)), the shape regular at γ0 = 0 (→ −cos ψ_i)."""
+        s, R, l, g0 = self.sol, self.R, self.l, self.gamma0
+        tiny = jnp.sqrt(jnp.finfo(g0.dtype).tiny)
+        v = jnp.where(g0 > tiny, s.delta_gamma / jnp.where(g0 > tiny, g0, 1.0), 0.0)
+        gamma = s.gamma
+        sinc_g0 = _sinc(jnp, g0, jnp.sin(g0))
+        # tan γ / tan γ0 = (γ/γ0)(sinc γ / sinc γ0)(cos γ0 / cos γ)
+        tan_ratio = (1.0 + v) * _sinc(jnp, gamma, jnp.sin(gamma)) / sinc_g0
+        tan_ratio = tan_ratio * jnp.cos(g0) / jnp.cos(gamma)
+        half_dg = 0.5 * s.delta_gamma
+        # c / (R tan γ0) = (l/R) sin((γ+γ0)/2) · v · sinc((γ−γ0)/2) · cos γ0 / sinc γ0
+        plunge = (
+            (l / R)
+            * jnp.sin(0.5 * (gamma + g0))
+            * v
+            * _sinc(jnp, half_dg, jnp.sin(half_dg))
+            * jnp.cos(g0)
+            / sinc_g0
+        )
+        psi_i = joint.roller_angles(s.psi)
+        bracket = (
+            2.0 * jnp.cos(psi_i)
+            + 2.0 * (jnp.sin(0.5 * gamma) ** 2 * jnp.cos(3.0 * s.psi))[..., None]
+        )
+        shape = plunge[..., None] - 0.5 * tan_ratio[..., None] * bracket
+        return R * jnp.tan(g0) * _ptp(shape)
 
 
 _METRICS = {
-    "delta_pp": lambda R, sol, rates: _ptp(sol.delta),
-    "irregularity": lambda R, sol, rates: _ptp(rates.psi),
-    "gamma_pp": lambda R, sol, rates: _ptp(sol.gamma),
-    "gamma_max": lambda R, sol, rates: jnp.max(sol.gamma),
-    "ecc_max": lambda R, sol, rates: jnp.max(joint.eccentricity(R, sol.gamma)),
-    "roller_stroke": lambda R, sol, rates: _ptp(
-        joint.roller_radial_distance(R, sol.gamma, sol.psi)
-    ),
-    "roller_radial_max": lambda R, sol, rates: jnp.max(
-        joint.roller_radial_distance(R, sol.gamma, sol.psi)
-    ),
-    "spider_orbit_x": lambda R, sol, rates: _ptp(_spider(R, sol)[0]),
-    "spider_orbit_y": lambda R, sol, rates: _ptp(_spider(R, sol)[1]),
-    "spider_orbit_z": lambda R, sol, rates: _ptp(_spider(R, sol)[2]),
-    "converged": lambda R, sol, rates: jnp.all(sol.converged),
-    "max_residual": lambda R, sol, rates: jnp.max(jnp.abs(sol.residual)),
+    "delta_pp": _Revolution.delta_pp,
+    "irregularity": _Revolution.irregularity,
+    "gamma_pp": lambda r: _ptp(r.sol.delta_gamma),
+    "gamma_max": lambda r: r.gamma0 + jnp.max(r.sol.delta_gamma),
+    # e(γ) grows with γ on 0 ≤ γ < π/2: its largest value is e at the largest γ.
+    "ecc_max": lambda r: joint.eccentricity(r.R, r.gamma0 + jnp.max(r.sol.delta_gamma)),
+    "roller_stroke": lambda r: _ptp(r.roller_radial_excess),
+    "roller_radial_max": lambda r: r.R + jnp.max(r.roller_radial_excess),
+    "roller_axial_stroke": _Revolution.roller_axial_stroke,
+    "spider_orbit_x": lambda r: _ptp(r.spider[0]),
+    "spider_orbit_y": lambda r: _ptp(r.spider[1]),
+    "spider_orbit_z": lambda r: _ptp(r.spider[2]),
+    "converged": lambda r: jnp.all(r.sol.result == RESULTS.successful),
+    "max_residual": lambda r: jnp.max(jnp.abs(r.sol.residual)),
+    "error_estimate": lambda r: jnp.max(r.sol.error_estimate),
+    "result": lambda r: jnp.max(r.sol.result).astype(jnp.int32),
 }
 NEEDS_RATES = ("irregularity",)
+METRICS = tuple(_METRICS)
 
 
 def metrics_from(layout, sol, rates, names):
-    """The named kinematic metrics (KinematicMetrics field names) from a revolution."""
-    R = jnp.asarray(layout.R, sol.theta.dtype)
-    return {name: _METRICS[name](R, sol, rates) for name in names}
+    """The named kinematic metrics (KinematicMetrics field names) from a :func:`revolution`.
+
+    Only the metrics named are built (``rates`` may be None unless
+    ``"irregularity"`` is asked for). Returns a dict name → scalar array;
+    differentiable like :func:`kinematic_metrics`. E.g. for an optimiser::
+
+        sol, rates = revolution(layout, 120, "newton", with_rates=True)
+        m = metrics_from(layout, sol, rates, ("irregularity", "ecc_max", "gamma_pp",
+                                              "roller_axial_stroke", "result"))
+    """
+    r = _Revolution(layout, sol, rates)
+    return {name: _METRICS[name](r) for name in names}
 
 
-@functools.partial(jax.jit, static_argnames=("n_theta", "fidelity", "max_steps"))
 def kinematic_metrics(
-    layout, n_theta=360, fidelity="newton", *, rtol=None, max_steps=DEFAULT_MAX_STEPS
+    layout, n_theta=360, solver="newton", *, throw=False, fidelity=solvers._UNSET
 ):
     """Kinematic metrics of a halfshaft layout over one revolution.
 
@@ -146,21 +254,49 @@ def kinematic_metrics(
             layouts for batches, or use :func:`tripodjax.sweep`).
         n_theta: input angles per revolution, a multiple of 6; only the
             first period (n_theta/3 angles) is solved, see :func:`period_grid`.
-        fidelity: ``"newton"`` — the implicit solve converged to the dtype's
-            tolerance (default); ``"analytic"`` — the closed form of
-            :func:`~tripodjax.halfshaft.analytic_halfshaft`, no iteration,
-            an order of magnitude cheaper, irregularity within 0.4 %.
-        rtol, max_steps: Newton tolerance and iteration cap (``"newton"``
-            only), see :func:`~tripodjax.solve_halfshaft`.
+        solver: :class:`~tripodjax.solvers.Newton` (``"newton"``, default) —
+            the implicit solve converged to the dtype's tolerance;
+            :class:`~tripodjax.solvers.Analytic` (``"analytic"``) — the closed
+            form plus one Newton correction in plain arithmetic, over the
+            whole domain within 0.12 % (irregularity), 0.03 % (delta_pp),
+            0.13 % (ecc_max), 0.4 % (gamma_pp), an order of magnitude cheaper;
+            ``"closed_form"`` — the closed form alone (see :mod:`tripodjax.solvers`).
+        throw: raise :class:`~tripodjax.solvers.SolverError` naming the first
+            angle θ whose solve did not succeed. Outside ``jax.jit`` only.
+        fidelity: older spelling of ``solver`` (a shorthand string).
 
     Returns:
-        :class:`KinematicMetrics`. Jit-compiled (``n_theta``, ``fidelity`` and
-        ``max_steps`` are static). Every float field is differentiable
-        (``jax.grad``, ``jax.jacfwd``) w.r.t. every Layout field.
+        :class:`KinematicMetrics`. Jit-compiled (``n_theta`` and ``solver``
+        are static). Every float field is differentiable (``jax.grad``,
+        ``jax.jacfwd``) w.r.t. every Layout field, and at γ0 = 0 ``jax.grad``
+        gives the one-sided derivative (irregularity 1.5 R/l, delta_pp
+        R/(2l), roller_axial_stroke 2R per radian of γ0).
     """
-    sol, rates = revolution(
-        layout, n_theta, fidelity, with_rates=True, rtol=rtol, max_steps=max_steps
-    )
-    return KinematicMetrics(
-        **metrics_from(layout, sol, rates, KinematicMetrics.__dataclass_fields__)
-    )
+    check_layout(layout)
+    solver = solvers.resolve_legacy(solver, fidelity)
+    _check_n_theta(n_theta)
+    metrics = _kinematic_metrics(layout, n_theta=n_theta, solver=solver)
+    if throw:
+        raise_failure_of_revolution(metrics.result, layout, n_theta, solver, "kinematic_metrics")
+    return metrics
+
+
+@functools.partial(jax.jit, static_argnames=("n_theta", "solver"))
+def _kinematic_metrics(layout, *, n_theta, solver):
+    sol, rates = revolution(layout, n_theta, solver, with_rates=True)
+    return KinematicMetrics(**metrics_from(layout, sol, rates, METRICS))
+
+
+def raise_failure_of_revolution(result, layout, n_theta, solver, what, index=None):
+    """Raise SolverError for a revolution whose worst code is not successful, naming the angle.
+
+    Solves the revolution again (concrete values, outside jit) to find the
+    first failing θ; ``index`` names the layout in a batch.
+    """
+    if isinstance(result, jax.core.Tracer):
+        raise TypeError(f"{what}: throw=True needs concrete values; it works outside jax.jit only")
+    if int(np.max(np.asarray(result))) == RESULTS.successful:
+        return
+    sol, _ = revolution(layout, n_theta, solver, with_rates=False)
+    prefix = f"layout {index}, " if index is not None else ""
+    raise_first_failure(sol.result, sol.theta, what, index_prefix=prefix)

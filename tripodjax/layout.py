@@ -3,21 +3,29 @@
 import math
 import numbers
 
-from tripodjax._pytree import pytree_dataclass
+import numpy as np
 
-MAX_GAMMA0 = math.pi / 4  # rad; the validated domain ends at 45°
-MAX_R_OVER_L = 0.2
+from tripodjax._checks import (
+    MAX_GAMMA0,
+    MAX_R_OVER_L,
+    check_choice,
+    check_instance,
+    check_layout_domain,
+    check_real,
+    checked_pytree_dataclass,
+)
+
+__all__ = ["MAX_GAMMA0", "MAX_R_OVER_L", "TABLE_2_1", "Layout", "check_layout", "seed_case"]
 
 
-def _is_python_number(value):
-    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+def _is_scalar(value):
+    """A concrete real scalar: a Python/NumPy number (not bool) or a 0-d NumPy array."""
+    if isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_)):
+        return True
+    return isinstance(value, np.ndarray) and value.ndim == 0
 
 
-def _describe(field, value, allowed):
-    return f"Layout.{field} = {value!r} is outside the allowed range: {allowed}"
-
-
-@pytree_dataclass
+@checked_pytree_dataclass
 class Layout:
     """Layout of a halfshaft with a tripod joint (seed §2.9, figure 2.9.1).
 
@@ -28,11 +36,19 @@ class Layout:
         gamma0: layout articulation angle [rad], the joint angle at θ = 0.
 
     An immutable pytree: it can be passed through ``jax.jit``, ``jax.vmap``
-    and differentiated with ``jax.grad`` (gradients come back as a Layout).
-    Built from Python numbers it checks its documented domain
-    ``R > 0``, ``l > 0``, ``R/l ≤ 0.2``, ``0 ≤ gamma0 ≤ π/4`` (45°) and
-    raises ``ValueError`` naming the field, the value and the allowed range.
-    Array or traced fields are not checked (that would break ``jit``).
+    and differentiated with ``jax.grad`` (gradients come back as a Layout;
+    JAX rebuilds instances without re-running the checks).
+
+    Fields are real numbers or arrays of real numbers: a ``str``, ``bool``,
+    ``None``, complex number or list of those raises ``TypeError``. Scalar
+    fields (Python or NumPy numbers) are checked against the documented
+    domain ``R > 0`` mm, ``l > 0`` mm, ``R/l ≤ 0.2``, ``0 ≤ gamma0 ≤ π/4``
+    (45°), all finite — the one rule of
+    :func:`tripodjax._checks.check_layout_domain` — and raise ``ValueError``
+    naming the field, the value and the allowed range. Array fields (a batch
+    for :func:`~tripodjax.sweep`, which checks them element by element) and
+    traced fields are not range-checked here; inside ``jit`` a NaN field
+    propagates as NaN (and a non-successful result code of the solve).
 
     Use :meth:`from_degrees` to give ``gamma0`` in degrees.
     """
@@ -44,35 +60,31 @@ class Layout:
     def __post_init__(self):
         values = {"R": self.R, "l": self.l, "gamma0": self.gamma0}
         for name, value in values.items():
-            if _is_python_number(value) and not math.isfinite(value):
-                raise ValueError(_describe(name, value, "a finite number"))
-        if _is_python_number(self.R) and not self.R > 0:
-            raise ValueError(_describe("R", self.R, "R > 0 mm"))
-        if _is_python_number(self.l) and not self.l > 0:
-            raise ValueError(_describe("l", self.l, "l > 0 mm"))
-        if _is_python_number(self.gamma0) and not 0 <= self.gamma0 <= MAX_GAMMA0:
-            raise ValueError(
-                _describe(
-                    "gamma0",
-                    self.gamma0,
-                    f"0 ≤ gamma0 ≤ {MAX_GAMMA0:.6f} rad (45°); "
-                    f"got {math.degrees(self.gamma0):.4g}°",
-                )
-            )
-        if _is_python_number(self.R) and _is_python_number(self.l):
-            if self.R / self.l > MAX_R_OVER_L:
-                raise ValueError(
-                    f"Layout.R / Layout.l = {self.R!r} / {self.l!r} = "
-                    f"{self.R / self.l:.4g} is outside the allowed range: "
-                    f"R/l ≤ {MAX_R_OVER_L}"
-                )
+            check_real(f"Layout.{name}", value)
+        check_layout_domain(
+            **{name: value for name, value in values.items() if _is_scalar(value)},
+            prefix="Layout.",
+        )
 
     @classmethod
     def from_degrees(cls, R, l, gamma0_deg):
-        """Build a Layout with the layout articulation angle in degrees."""
-        if _is_python_number(gamma0_deg):
+        """Build a Layout with the layout articulation angle in degrees (0 ≤ gamma0_deg ≤ 45)."""
+        check_real("gamma0_deg", gamma0_deg)
+        if _is_scalar(gamma0_deg):
+            check_layout_domain(gamma0=gamma0_deg, names={"gamma0": "gamma0_deg"}, degrees=True)
             return cls(R, l, math.radians(gamma0_deg))
         return cls(R, l, gamma0_deg * (math.pi / 180.0))
+
+
+def check_layout(layout, name="layout", allowed="a Layout, e.g. Layout(25.0, 500.0, 0.35)"):
+    """``TypeError`` naming ``name`` unless ``layout`` is a :class:`Layout` (its fields were checked).
+
+    The one type rule of every function that takes a layout
+    (:func:`~tripodjax.solve_halfshaft`, :func:`~tripodjax.kinematic_metrics`,
+    :func:`~tripodjax.friction.gaf_halfshaft`, :func:`~tripodjax.sweep`).
+    Returns ``layout``.
+    """
+    return check_instance(name, layout, Layout, allowed)
 
 
 # The seed's Table 2.1 cases (§2.10): code → (l [mm], R [mm], γ0 [deg]).
@@ -93,10 +105,12 @@ TABLE_2_1 = {
 
 def seed_case(code):
     """The Layout of one of the seed's Table 2.1 cases, e.g. ``seed_case("N")``."""
-    try:
-        l, R, gamma0_deg = TABLE_2_1[code]
-    except KeyError:
-        raise ValueError(
-            f"unknown Table 2.1 case {code!r}; allowed: {', '.join(TABLE_2_1)}"
-        ) from None
+    if not isinstance(code, str):
+        raise TypeError(
+            f"code = {code!r} ({type(code).__name__}) is not allowed; "
+            f"allowed: a Table 2.1 case name, one of {', '.join(TABLE_2_1)}"
+        )
+    if code not in TABLE_2_1:
+        check_choice("code", code, tuple(TABLE_2_1))
+    l, R, gamma0_deg = TABLE_2_1[code]
     return Layout.from_degrees(R, l, gamma0_deg)

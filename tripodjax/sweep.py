@@ -8,32 +8,46 @@ then call :func:`sweep` with the same ``layouts`` on every host; ``jax.devices()
 then spans all hosts and each chunk is split across all of them.
 """
 
+import collections.abc
 import functools
 import math
-import sys
-import time
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from tripodjax._checks import concrete
-from tripodjax.friction import DEFAULT_STROKE_WIDTH, GAF_MODELS, GREASE_A, gaf_from_revolution
-from tripodjax.halfshaft import DEFAULT_MAX_STEPS
+from tripodjax import progress as progress_meters
+from tripodjax import solvers
+from tripodjax._checks import (
+    check_choice,
+    check_integer,
+    check_layout_domain,
+    check_non_negative,
+    check_positive,
+)
+from tripodjax.friction import (
+    DEFAULT_STROKE_WIDTH,
+    GAF_MODELS,
+    GREASE_A,
+    _check_params,
+    gaf_from_revolution,
+)
 from tripodjax.kinematics import (
+    METRICS,
     NEEDS_RATES,
-    KinematicMetrics,
-    check_fidelity,
+    _check_n_theta,
     metrics_from,
-    period_grid,
+    raise_failure_of_revolution,
     revolution,
 )
-from tripodjax.layout import MAX_GAMMA0, MAX_R_OVER_L, Layout
+from tripodjax.layout import Layout, check_layout
+from tripodjax.results import RESULTS, worst
 
-KINEMATIC_OUTPUTS = tuple(KinematicMetrics.__dataclass_fields__)
+KINEMATIC_OUTPUTS = METRICS
 GAF_OUTPUTS = ("gaf_rms", "gaf_peak", "gaf_third_order")
 OUTPUTS = KINEMATIC_OUTPUTS + GAF_OUTPUTS
-DEFAULT_OUTPUTS = ("delta_pp", "irregularity", "gamma_pp", "ecc_max", "converged")
+STATUS_OUTPUTS = ("result", "converged")
+DEFAULT_OUTPUTS = ("delta_pp", "irregularity", "gamma_pp", "ecc_max", "converged", "result")
 # Angles solved per compiled call: on a CPU a chunk's arrays should stay in cache (measured on
 # a 2-core machine with 2 MiB L2 per core: 3× faster at 2^18 points than at 2^20); on an
 # accelerator larger chunks fill the device.
@@ -41,61 +55,49 @@ DEFAULT_CHUNK_POINTS = {"cpu": 2**18}
 DEFAULT_CHUNK_POINTS_ACCELERATOR = 2**22
 
 
-class _Progress:
-    """A one-line progress bar on standard error; silent when that is no terminal."""
+class SweepResult(dict):
+    """The outputs of :func:`sweep`: a dict name → NumPy array of length N, plus a status summary.
 
-    def __init__(self, total, enabled):
-        self.total, self.enabled, self.start = total, enabled, time.perf_counter()
+    Attributes:
+        result_counts: dict :class:`~tripodjax.RESULTS` name → number of
+            layouts with that (worst) code, when the status was computed (an
+            output ``"result"`` or ``"converged"``, or ``throw=True``); else None.
+    """
 
-    def update(self, done):
-        if not self.enabled:
-            return
-        elapsed = time.perf_counter() - self.start
-        rate = done / elapsed if elapsed > 0 else 0.0
-        bar = "#" * int(30 * done / self.total)
-        sys.stderr.write(
-            f"\rsweep [{bar:<30}] {done}/{self.total} layouts, {elapsed:.1f} s, {rate:.0f} layouts/s"
-        )
-        if done >= self.total:
-            sys.stderr.write("\n")
-        sys.stderr.flush()
+    result_counts: dict | None = None
+
+
+def count_results(codes):
+    """Layouts per :class:`~tripodjax.RESULTS` code: dict name → count (every code listed)."""
+    codes = np.asarray(codes)
+    return {code.name: int(np.count_nonzero(codes == code)) for code in RESULTS}
 
 
 def _check_layouts(layouts):
+    check_layout(layouts, "layouts", "a Layout whose fields are 1-D arrays of one length")
     fields = {name: getattr(layouts, name) for name in ("R", "l", "gamma0")}
     shapes = {name: np.shape(value) for name, value in fields.items()}
     if any(len(shape) != 1 for shape in shapes.values()) or len(set(shapes.values())) != 1:
         raise ValueError(
             f"sweep needs a Layout whose fields are 1-D arrays of one length; got shapes {shapes}"
         )
-    arrays = {name: concrete(value) for name, value in fields.items()}
-    rules = {
-        "R": (lambda a: np.isfinite(a) & (a > 0), "R > 0 mm"),
-        "l": (lambda a: np.isfinite(a) & (a > 0), "l > 0 mm"),
-        "gamma0": (
-            lambda a: np.isfinite(a) & (a >= 0) & (a <= MAX_GAMMA0),
-            "0 ≤ gamma0 ≤ π/4 rad (45°)",
-        ),
-    }
-    for name, (ok, allowed) in rules.items():
-        bad = np.flatnonzero(~ok(arrays[name]))
-        if bad.size:
-            i = int(bad[0])
-            raise ValueError(
-                f"layouts.{name}[{i}] = {float(arrays[name][i])!r} is outside the allowed range: {allowed}"
-            )
-    bad = np.flatnonzero(arrays["R"] / arrays["l"] > MAX_R_OVER_L)
-    if bad.size:
-        i = int(bad[0])
-        raise ValueError(
-            f"layouts.R[{i}] / layouts.l[{i}] = {float(arrays['R'][i] / arrays['l'][i]):.4g} is outside the allowed range: R/l ≤ {MAX_R_OVER_L}"
-        )
+    check_layout_domain(**fields, prefix="layouts.")
     return shapes["R"][0]
 
 
 def _check_outputs(outputs, torque):
+    allowed = f"a sequence of names among {', '.join(OUTPUTS)}"
+    if isinstance(outputs, str | bytes):
+        raise TypeError(
+            f"outputs = {outputs!r} is a single string; allowed: {allowed}, e.g. ({outputs!r},)"
+        )
+    if not isinstance(outputs, collections.abc.Sequence):  # a dict, a set, a number…
+        raise TypeError(
+            f"outputs = {outputs!r} is not allowed; allowed: {allowed} (a tuple or list), "
+            f"got a {type(outputs).__name__}"
+        )
     outputs = tuple(outputs)
-    unknown = [name for name in outputs if name not in OUTPUTS]
+    unknown = [name for name in outputs if not isinstance(name, str) or name not in OUTPUTS]
     if unknown or not outputs:
         raise ValueError(
             f"outputs {unknown or outputs!r} not allowed; allowed: {', '.join(OUTPUTS)}"
@@ -104,37 +106,27 @@ def _check_outputs(outputs, torque):
         raise ValueError(
             f"outputs {', '.join(n for n in outputs if n in GAF_OUTPUTS)} need a torque [N·m]"
         )
-    return outputs
+    return tuple(dict.fromkeys(outputs))  # without repeats, in order
 
 
-@functools.partial(
-    jax.jit, static_argnames=("n_theta", "fidelity", "outputs", "gaf_model", "max_steps")
-)
+@functools.partial(jax.jit, static_argnames=("n_theta", "solver", "outputs", "gaf_model"))
 def _evaluate_chunk(
-    layouts,
-    torque,
-    friction_params,
-    width,
-    rtol,
-    *,
-    n_theta,
-    fidelity,
-    outputs,
-    gaf_model,
-    max_steps,
+    layouts, torque, friction_params, width, *, n_theta, solver, outputs, gaf_model
 ):
     kinematic = tuple(name for name in outputs if name in KINEMATIC_OUTPUTS)
     gaf_names = tuple(name for name in outputs if name in GAF_OUTPUTS)
     with_rates = bool(gaf_names) or any(name in NEEDS_RATES for name in kinematic)
 
     def one(layout):
-        sol, rates = revolution(
-            layout, n_theta, fidelity, with_rates=with_rates, rtol=rtol, max_steps=max_steps
-        )
+        sol, rates = revolution(layout, n_theta, solver, with_rates=with_rates)
         result = metrics_from(layout, sol, rates, kinematic)
         if gaf_names:
             g = gaf_from_revolution(layout, sol, rates, torque, friction_params, gaf_model, width)
             result.update(gaf_rms=g.rms, gaf_peak=g.peak, gaf_third_order=g.third_order)
+            if "result" in result:
+                result["result"] = worst(result["result"], g.result)
+                if "converged" in result:
+                    result["converged"] = result["result"] == RESULTS.successful
         return {name: result[name] for name in outputs}
 
     return jax.vmap(one)(layouts)
@@ -143,7 +135,7 @@ def _evaluate_chunk(
 def sweep(
     layouts,
     n_theta=360,
-    fidelity="newton",
+    solver="newton",
     outputs=DEFAULT_OUTPUTS,
     chunk_size=None,
     *,
@@ -151,46 +143,66 @@ def sweep(
     friction_params=GREASE_A,
     gaf_model="stroke",
     gaf_width=DEFAULT_STROKE_WIDTH,
-    rtol=None,
-    max_steps=DEFAULT_MAX_STEPS,
     devices=None,
     progress=None,
+    throw=False,
+    fidelity=solvers._UNSET,
+    rtol=solvers._UNSET,
+    max_steps=solvers._UNSET,
 ):
     """Metrics of many layouts at once.
 
     Args:
         layouts: a :class:`~tripodjax.Layout` whose fields are 1-D arrays of
-            one length N (checked: the same domain as a scalar Layout; the
-            error names the field and the index).
+            one length N (checked element by element against the layout
+            domain; the error names the field and the index).
         n_theta: angles per revolution (a multiple of 6).
-        fidelity: ``"newton"`` or ``"analytic"`` (see :func:`~tripodjax.kinematic_metrics`).
-        outputs: names to compute — any :class:`~tripodjax.KinematicMetrics`
-            field, and ``"gaf_rms"``, ``"gaf_peak"``, ``"gaf_third_order"`` [N]
-            (these need ``torque``). Only these are computed: dψ/dθ, for
-            instance, only when ``"irregularity"`` or a GAF output is asked for.
-        chunk_size: layouts per compiled call, rounded up to a multiple of the
-            device count; bounds the memory. Default: 2^18 solved angles per
-            chunk on a CPU (cache-sized: 2184 layouts at n_theta = 360),
-            2^22 on an accelerator.
-        torque, friction_params, gaf_model, gaf_width: GAF inputs, see
+        solver: a :mod:`tripodjax.solvers` object or shorthand —
+            ``"newton"`` (default), ``"analytic"``, ``"closed_form"`` (see
+            :func:`~tripodjax.kinematic_metrics`).
+        outputs: a sequence of names to compute — any
+            :class:`~tripodjax.KinematicMetrics` field (including
+            ``"result"``, the worst :class:`~tripodjax.RESULTS` code per
+            layout, and ``"error_estimate"``, the per-layout error estimate of
+            the solver level), and ``"gaf_rms"``, ``"gaf_peak"``,
+            ``"gaf_third_order"`` [N] (these need ``torque``; their status
+            joins ``"result"``). Only these are computed: dψ/dθ, for instance,
+            only when ``"irregularity"`` or a GAF output is asked for. A bare
+            string is a TypeError.
+        chunk_size: layouts per compiled call, a positive integer, rounded up
+            to a multiple of the device count; bounds the memory. Default: 2^18
+            solved angles per chunk on a CPU (cache-sized: 2184 layouts at
+            n_theta = 360), 2^22 on an accelerator.
+        torque: GAF torque [N·m], finite and ≥ 0 (as :func:`~tripodjax.friction.gaf_halfshaft`).
+        friction_params, gaf_model, gaf_width: GAF inputs, see
             :func:`~tripodjax.friction.gaf_halfshaft`.
-        rtol, max_steps: Newton controls, see :func:`~tripodjax.solve_halfshaft`.
         devices: devices to split each chunk over (default: all visible).
-        progress: show a progress bar on standard error; default: only when
-            standard error is a terminal and there is more than one chunk.
+        progress: ``None`` (a bar when standard error is a terminal and there
+            is more than one chunk), ``True``/``False`` or a
+            :class:`~tripodjax.progress.ProgressMeter`.
+        throw: raise :class:`~tripodjax.solvers.SolverError` naming the first
+            layout (index) and angle θ whose solve did not succeed.
+        fidelity, rtol, max_steps: older spellings of ``solver``.
 
     Returns:
-        dict name → NumPy array of length N. The working dtype is that of the
-        layout arrays.
+        :class:`SweepResult`: a dict name → NumPy array of length N, with
+        ``result_counts`` (layouts per result code) when ``"result"`` or
+        ``"converged"`` is among the outputs or ``throw`` is set. The working
+        dtype is that of the layout arrays.
     """
     n = _check_layouts(layouts)
+    solver = solvers.resolve_legacy(solver, fidelity, rtol, max_steps)
     outputs = _check_outputs(outputs, torque)
-    check_fidelity(fidelity)
-    period_grid(n_theta, jnp.float32)  # checks n_theta
-    if gaf_model not in GAF_MODELS:
-        raise ValueError(
-            f"gaf_model = {gaf_model!r} is not allowed; allowed: {', '.join(GAF_MODELS)}"
-        )
+    _check_n_theta(n_theta)
+    if torque is not None:
+        check_non_negative("torque", torque, " N·m")
+    if chunk_size is not None:
+        chunk_size = int(check_integer("chunk_size", chunk_size, minimum=1))
+    _check_params(friction_params, "friction_params")
+    check_choice("gaf_model", gaf_model, GAF_MODELS)
+    check_positive(gaf_width=gaf_width)
+    status = bool(throw) or any(name in STATUS_OUTPUTS for name in outputs)
+    computed = outputs + (("result",) if status and "result" not in outputs else ())
     devices = list(devices) if devices is not None else jax.devices()
     mesh = jax.sharding.Mesh(np.array(devices), ("layouts",))
     sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("layouts"))
@@ -200,36 +212,46 @@ def sweep(
     chunk = max(len(devices), math.ceil(min(chunk, max(n, 1)) / len(devices)) * len(devices))
     fields = [np.asarray(getattr(layouts, name)) for name in ("R", "l", "gamma0")]
     n_chunks = math.ceil(n / chunk)
-    bar = _Progress(n, sys.stderr.isatty() and n_chunks > 1 if progress is None else progress)
-    static = dict(
-        n_theta=n_theta,
-        fidelity=fidelity,
-        outputs=outputs,
-        gaf_model=gaf_model,
-        max_steps=max_steps,
-    )
-    pieces = {name: [] for name in outputs}
+    if progress is None and n_chunks <= 1:
+        progress = False
+    bar = progress_meters.resolve(progress).start(total=n, desc="sweep", unit="layouts")
+    static = dict(n_theta=n_theta, solver=solver, outputs=computed, gaf_model=gaf_model)
+    pieces = {name: [] for name in computed}
     pending = None  # one chunk in flight while the next is dispatched (JAX runs asynchronously)
 
     def collect(done):
-        result, count, stop = done
-        for name in outputs:
+        result, count = done
+        for name in computed:
             pieces[name].append(np.asarray(result[name])[:count])
-        bar.update(stop)
+        bar.update(count)
 
-    for start in range(0, n, chunk):
-        stop = min(start + chunk, n)
-        # Pad the last chunk with copies of its last layout: one compiled shape throughout.
-        index = np.minimum(np.arange(start, start + chunk), stop - 1)
-        part = Layout(*(jax.device_put(f[index], sharding) for f in fields))
-        dispatched = (
-            _evaluate_chunk(part, torque, friction_params, gaf_width, rtol, **static),
-            stop - start,
-            stop,
-        )
+    try:
+        for start in range(0, n, chunk):
+            stop = min(start + chunk, n)
+            # Pad the last chunk with copies of its last layout: one compiled shape throughout.
+            index = np.minimum(np.arange(start, start + chunk), stop - 1)
+            part = Layout(*(jax.device_put(f[index], sharding) for f in fields))
+            dispatched = (
+                _evaluate_chunk(part, torque, friction_params, gaf_width, **static),
+                stop - start,
+            )
+            if pending is not None:
+                collect(pending)
+            pending = dispatched
         if pending is not None:
             collect(pending)
-        pending = dispatched
-    if pending is not None:
-        collect(pending)
-    return {name: np.concatenate(pieces[name]) if pieces[name] else np.zeros(0) for name in outputs}
+    finally:
+        bar.close()
+    out = {name: np.concatenate(pieces[name]) if pieces[name] else np.zeros(0) for name in computed}
+    codes = out["result"] if status else None
+    if throw and codes is not None and np.any(codes != RESULTS.successful):
+        i = int(np.flatnonzero(codes != RESULTS.successful)[0])
+        layout = Layout(*(jnp.asarray(f[i]) for f in fields))
+        raise_failure_of_revolution(codes[i], layout, n_theta, solver, "sweep", index=i)
+        raise solvers.SolverError(
+            f"sweep: layout {i}: {RESULTS(int(codes[i])).name} "
+            f"({RESULTS(int(codes[i])).describe()}) in the GAF over the revolution"
+        )
+    result = SweepResult((name, out[name]) for name in outputs)
+    result.result_counts = count_results(codes) if codes is not None else None
+    return result

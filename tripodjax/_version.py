@@ -1,0 +1,3 @@
+"""The package's version, written once (pyproject.toml reads it; see CHANGELOG.md)."""
+
+version = "0.1.0"
