@@ -1,24 +1,42 @@
-"""The joint-design problem and its optimiser (``optimize-joint``).
+"""The joint-design problem and its optimiser (``optimize-joint``), as ``tripodjax.optimize``.
 
-- :func:`load_spec` — the design specification (TOML, checked; an embedded default).
-- :func:`evaluate` — objective and constraint margins of one design (jit-compiled).
-- :func:`solve` — the proposed joint size, by an augmented Lagrangian on optax's L-BFGS.
-- :func:`solve_family`, :func:`pareto_front` — many scenarios at once through vmap.
+- [`load_spec`][tripodjax.optimize.load_spec] — the design specification (TOML, checked; an
+  embedded default), a pytree whose numbers are traced and whose structure is static.
+- [`evaluate`][tripodjax.optimize.evaluate] — objective, margins and quantities of one design.
+- [`solve`][tripodjax.optimize.solve] — the proposed design, by an augmented Lagrangian on
+  optax's L-BFGS; compiled once per spec structure.
+- [`solve_family`][tripodjax.optimize.solve_family],
+  [`pareto_front`][tripodjax.optimize.pareto_front] — many scenarios in one batch.
+- [`sensitivities`][tripodjax.optimize.sensitivities] — how the optimum moves with each number.
+- [`evaluate_catalogue`][tripodjax.optimize.evaluate_catalogue] — the GE/GI sizes under the spec.
 """
 
-from tripodjax.optimize.problem import evaluate
+from tripodjax.optimize.problem import evaluate, evaluate_catalogue
+from tripodjax.optimize.sensitivity import sensitivities
 from tripodjax.optimize.solver import Result, pareto_front, solve, solve_family
-from tripodjax.optimize.spec import DEFAULT_SPEC_TOML, Spec, SpecError, load_spec, parse_spec
+from tripodjax.optimize.spec import (
+    DEFAULT_SPEC_TOML,
+    QUANTITIES,
+    VARIABLES,
+    Spec,
+    SpecError,
+    load_spec,
+    parse_spec,
+)
 
 __all__ = [
     "DEFAULT_SPEC_TOML",
+    "QUANTITIES",
+    "VARIABLES",
     "Result",
     "Spec",
     "SpecError",
     "evaluate",
+    "evaluate_catalogue",
     "load_spec",
     "pareto_front",
     "parse_spec",
+    "sensitivities",
     "solve",
     "solve_family",
 ]

@@ -1,10 +1,21 @@
-"""``optimize-joint [SPEC] --out DIR``: propose a tripod-joint size for a design specification."""
+"""``optimize-joint [SPEC] --out DIR``: propose a tripod-joint design for a design specification.
+
+Exit status (also in ``--help``):
+
+- 0: converged to a feasible design;
+- 1: not converged, or infeasible (no start reached feasibility; the message says
+  "infeasible" and names the smallest violations); the report is written either way;
+- 2: bad specification, arguments or output folder (one line, nothing computed);
+- 3: the report could not be written (the design is printed; an older report is left intact);
+- 130: interrupted (Ctrl-C); no partial files are left.
+"""
 
 import argparse
 import os
 import sys
+import tempfile
 
-EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
+EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT, EXIT_WRITE_FAILED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 PARETO_FACTORS = (0.25, 0.5, 1.0, 2.0, 4.0)
 
 
@@ -17,20 +28,22 @@ def _parse(argv):
     parser = _Parser(
         prog="optimize-joint",
         description=(
-            "Propose the track pitch-circle radius R and roller diameter d of a tripod joint that meet "
-            "the Hertz static-capacity and life requirements and the R/d range, while keeping the "
-            "transmission irregularity, the generated axial force (GAF) and the joint size low. "
-            "Writes DIR/report.json and PNG plots (convergence, constraint margins, Pareto front)."
+            "Propose a tripod joint design (any of R, d, l, γ0, conformity, λ, μ_slp free, as the "
+            "spec's [bounds] say) that meets the Hertz static-capacity and life requirements and the "
+            "spec's constraints at the lowest objective. Writes DIR/report.json (strict JSON: design, "
+            "status, margins, sensitivities, the GE/GI catalogue choice, Pareto front) and PNG plots."
         ),
         epilog=(
-            "Exit status: 0 converged; 1 did not converge (the report says so); 2 bad specification or arguments. "
-            "Compiled code is cached in $TRIPODJAX_CACHE_DIR (default ~/.cache/tripodjax/jax), which makes later runs faster."
+            "Exit status: 0 converged and feasible; 1 not converged or infeasible (the report says "
+            "which); 2 bad specification, arguments or --out; 3 the report could not be written; "
+            "130 interrupted. Compiled code is cached in $TRIPODJAX_CACHE_DIR (default "
+            "~/.cache/tripodjax/jax), which makes later runs faster."
         ),
     )
     parser.add_argument(
         "spec",
         nargs="?",
-        help="TOML design specification (default: the embedded one, `optimize.DEFAULT_SPEC_TOML`)",
+        help="TOML design specification (default: the embedded one, tripodjax.optimize.DEFAULT_SPEC_TOML)",
     )
     parser.add_argument(
         "--out", required=True, metavar="DIR", help="directory for report.json and the plots"
@@ -44,21 +57,53 @@ def _parse(argv):
     return parser.parse_args(argv)
 
 
-def main(argv=None):
-    args = _parse(argv)
-    if os.path.exists(args.out) and not os.path.isdir(args.out):
-        print(f"optimize-joint: --out {args.out} exists and is not a directory", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    import jax
+def _check_out(path):
+    """Create --out if absent; it must be a writable directory. Returns an error line or None."""
+    if not path or not path.strip():
+        return "--out is empty; give a directory"
+    try:
+        os.makedirs(path, exist_ok=True)
+    except FileExistsError:
+        return f"--out {path} exists and is not a directory"
+    except OSError as error:
+        return f"--out {path} cannot be created: {error.strerror or error}"
+    if not os.path.isdir(path):
+        return f"--out {path} is not a directory"
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".write-test.", dir=path)
+        os.close(fd)
+        os.remove(probe)
+    except OSError as error:
+        return f"--out {path} is not writable: {error.strerror or error}"
+    return None
 
-    jax.config.update("jax_enable_x64", True)  # the command's own choice
-    # Compiling the optimiser takes most of a first run; keep the executables for the next one.
-    cache = os.environ.get("TRIPODJAX_CACHE_DIR") or os.path.join(
+
+def _cache_dir():
+    return os.environ.get("TRIPODJAX_CACHE_DIR") or os.path.join(
         os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "tripodjax", "jax"
     )
-    jax.config.update("jax_compilation_cache_dir", cache)
-    from tripodjax.optimize import report
-    from tripodjax.optimize.solver import pareto_front
+
+
+def main(argv=None):
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:
+        print("optimize-joint: interrupted; no report written", file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
+def _summary(result):
+    d = result.design
+    free = ", ".join(f"{k} = {d[k]:.4g}" for k in result.starts[0]["design"])
+    return f"{free} (objective {result.objective:.5f})"
+
+
+def _main(argv):
+    args = _parse(argv)
+    problem = _check_out(args.out)
+    if problem:
+        print(f"optimize-joint: {problem}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     from tripodjax.optimize.spec import SpecError, load_spec
 
     try:
@@ -66,43 +111,116 @@ def main(argv=None):
     except SpecError as error:
         print(f"optimize-joint: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    import jax
+
+    # The command's own choice: keep compiled executables for the next run.
+    jax.config.update("jax_compilation_cache_dir", _cache_dir())
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+    from tripodjax.optimize import report
+    from tripodjax.optimize._compiled import export_cache
+    from tripodjax.optimize.problem import evaluate, evaluate_catalogue
+    from tripodjax.optimize.sensitivity import sensitivities
+    from tripodjax.optimize.solver import _with, run
+
     progress = {"auto": None, "on": True, "off": False}[args.progress]
-    weight = spec["objective"]["w_gaf"]
-    weights = [weight * f for f in PARETO_FACTORS] if weight > 0 else [0.0, 0.5, 1.0, 2.0, 4.0]
-    # One batched solve gives the proposed design (the spec's own weight) and the Pareto front.
-    results = pareto_front(spec, weights, progress=progress)
-    main_result = results[PARETO_FACTORS.index(1.0)] if weight > 0 else results[0]
-    report.write(
-        args.out,
-        main_result,
+    pareto_weights = []
+    if "gaf_rms" in spec.structure.objective:
+        weight = float(spec.values["objective"]["w_gaf_rms"])
+        pareto_weights = (
+            [weight * f for f in PARETO_FACTORS] if weight > 0 else [0.0, 0.5, 1.0, 2.0, 4.0]
+        )
+    # One batch: the spec's own problem and the Pareto members.
+    scenarios = [spec.values] + [
+        _with(spec.values, "objective", w_gaf_rms=w) for w in pareto_weights
+    ]
+    with export_cache(os.path.join(_cache_dir(), "exports")):
+        results = run(spec, scenarios, progress)
+        result, pareto = results[0], list(zip(pareto_weights, results[1:], strict=True))
+        if result.feasible:
+            result.sensitivities = sensitivities(spec, result)
+        catalogue, choice = evaluate_catalogue(spec)
+        full = None
+        if spec.structure.fidelity != "newton" or spec.structure.n_theta != 360:
+            reference = spec.replace_values(solver={"fidelity": "newton", "n_theta": 360})
+            checked = evaluate(reference, {k: result.design[k] for k in spec.structure.free})
+            full = {"solver": "newton", "n_theta": 360, **checked}
+    figures = {
+        "convergence.png": report.figure_convergence(result),
+        "constraint_margins.png": report.figure_margins(result),
+        "catalogue.png": report.figure_catalogue(result, catalogue, choice),
+    }
+    if pareto:
+        figures["pareto_front.png"] = report.figure_pareto(result, pareto)
+    if result.sensitivities is not None and result.sensitivities["elasticities"]:
+        figures["sensitivities.png"] = report.figure_tornado(result)
+    body = report.report_dict(
+        result,
         spec,
-        list(zip(weights, results, strict=False)),
+        pareto=pareto,
+        catalogue=catalogue,
+        choice=choice,
+        full_fidelity=full,
         source=args.spec or "default",
     )
-    d = main_result.design
-    status = "converged" if main_result.converged else "NOT converged"
-    print(
-        f"optimize-joint: R = {d['R']:.3f} mm, d_roller = {d['d_roller']:.3f} mm, objective {main_result.objective:.5f}, "
-        f"KKT residual {main_result.kkt_residual:.2e} ({status}); report in {os.path.join(args.out, 'report.json')}"
+    status = "converged" if result.converged else "NOT converged"
+    ad_hoc = _summary(result)
+    cat = (
+        f"{choice['family']} {choice['size']} (objective {choice['objective']:.5f})"
+        if choice
+        else "none feasible"
     )
-    if not main_result.converged:
-        violated = [
-            f"{name} (margin {c['margin']:+.3g})"
-            for name, c in main_result.constraints.items()
-            if c["margin"] < 0
-        ]
-        reason = (
-            "violated: " + ", ".join(violated)
-            if violated
-            else "the KKT residual is above solver.tolerance"
+    message, code = "converged to a feasible design", EXIT_OK
+    if not result.feasible:
+        worst = sorted(
+            (c["margin"], name) for name, c in result.constraints.items() if c["margin"] < 0
         )
+        listed = ", ".join(f"{name} (margin {m:+.3g})" for m, name in worst[:3])
+        message, code = (
+            f"infeasible: no start reached feasibility; smallest violations: {listed}",
+            EXIT_NOT_CONVERGED,
+        )
+    elif not result.converged:
+        reasons = []
+        if not result.kkt_converged:
+            reasons.append(
+                "the KKT residual is above solver.tolerance within solver.max_outer iterations"
+            )
+        if not result.halfshaft_converged:
+            reasons.append(f"an inner solve at the design returned {result.result}")
+        message, code = f"not converged: {'; '.join(reasons)}", EXIT_NOT_CONVERGED
+    body["message"] = message
+    try:
+        report.write(args.out, body, figures)
+    except OSError as error:
+        print(f"optimize-joint: catalogue: {cat}; ad hoc: {ad_hoc}", file=sys.stderr)
         print(
-            f"optimize-joint: no converged design within solver.max_outer iterations; {reason}",
+            f"optimize-joint: cannot write the report in {args.out}: {error.strerror or error}",
             file=sys.stderr,
         )
-        return EXIT_NOT_CONVERGED
-    return EXIT_OK
+        return EXIT_WRITE_FAILED
+    print(
+        f"optimize-joint: catalogue: {cat}; ad hoc: {ad_hoc}, KKT residual "
+        f"{result.kkt_residual:.2e} ({status}); report in {os.path.join(args.out, 'report.json')}"
+    )
+    if code != EXIT_OK:
+        print(f"optimize-joint: {message}", file=sys.stderr)
+    return code
+
+
+def command():
+    """The ``optimize-joint`` console script: ``main()`` as the process's exit status.
+
+    After Ctrl-C the process leaves at once (``os._exit``) once its one line is printed:
+    an interpreter teardown racing XLA's compiler threads can crash. Nothing is left to
+    clean up by then (a report is staged under temporary names and removed on the way out).
+    """
+    code = main()
+    if code == EXIT_INTERRUPTED:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    sys.exit(code)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    command()

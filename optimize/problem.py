@@ -1,210 +1,373 @@
-"""The joint-design problem: design variables → objective and constraint margins.
+"""The joint-design problem: design variables → quantities, objective and constraint margins.
 
-Design variables: the track pitch-circle radius R and the roller diameter d
-[mm]. For each design the halfshaft (layout l, γ0 from the spec) is solved
-over a revolution by the implicit-differentiated Newton solve; the
-irregularity and the GAF RMS come from it, the static capacity and the life
-from the Hertz contact (seed §4.2). Everything is differentiable in (R, d).
+The design vector holds the free variables of the spec (any of R, d_roller,
+l, γ0, conformity, λ, μ_slp; internal units: mm, rad, –); the others stay at
+their spec values. For each design the halfshaft is solved over a revolution
+(seed §2.9, implicit derivatives), the Hertz capacities and life come from
+§4.2 and the GAF from §3.2, but only the quantities the objective and the
+constraints use are computed. Everything is differentiable in the design and
+in every number of the spec.
 
-Objective (dimensionless):
-
-    f = w_irr · Irr / Irr_ref + w_gaf · GAF_rms / GAF_ref + w_size · (2R + d) / D_ref,
-
-with 2R + d the outer diameter swept by the rollers, a proxy for the joint's size.
+Objective (dimensionless): f = Σ_q w_q · q / q_ref over the spec's terms.
 
 Constraint margins, ≥ 0 when satisfied, as logarithmic ratios (0.01 = 1 % to spare):
 
-    static_capacity   ln(M_s / (shock · M_max))
-    life              ln(L_km / required_km)
-    R_over_d_min      ln((R/d) / lo),   R_over_d_max   ln(hi / (R/d))
-    outer_diameter    ln(D_max / (2R + d))             (when the spec sets one)
+    static_capacity   ln(M_s / (shock_factor · M_max))        (always)
+    life              ln(L_km / required_km)                   (always)
+    max_<q>           ln(limit / q)
+    min_<q>           ln(q / limit)
 
-and the bounds on R and d, (x − lo)/(hi − lo) and (hi − x)/(hi − lo).
+and, in [`evaluate`][tripodjax.optimize.evaluate], the bounds of the free
+variables, (x − lo)/(hi − lo) and (hi − x)/(hi − lo).
 """
 
 import functools
+import math
+import numbers
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from tripodjax import friction, hertz
-from tripodjax.kinematics import revolution
+from tripodjax._checks import check_layout_domain
+from tripodjax.kinematics import metrics_from, revolution
 from tripodjax.layout import Layout
+from tripodjax.optimize._compiled import call
+from tripodjax.optimize.spec import (
+    GAF_QUANTITIES,
+    KINEMATIC_QUANTITIES,
+    QUANTITIES,
+    VARIABLES,
+)
+from tripodjax.results import RESULTS, worst
 
-GREASES = {"A": friction.GREASE_A, "B": friction.GREASE_B, "dry": friction.DRY}
-VARIABLES = ("R", "d_roller")
-
-
-def scenario(spec, **overrides):
-    """The traced parameters of a solve: layout and objective weights (overridable per family member)."""
-    values = {
-        "l": spec["layout"]["l"],
-        "gamma0": spec["layout"]["gamma0_rad"],
-        "w_irregularity": spec["objective"]["w_irregularity"],
-        "w_gaf": spec["objective"]["w_gaf"],
-        "w_size": spec["objective"]["w_size"],
-    }
-    values.update(overrides)
-    return {k: jnp.asarray(v, jnp.float64) for k, v in values.items()}
+MARGIN_FLOOR = 1e-12  # q is floored at this fraction of its limit inside ln(limit/q)
 
 
-def constraint_names(spec):
-    names = ["static_capacity", "life", "R_over_d_min", "R_over_d_max"]
-    if "max_outer_diameter" in spec["constraints"]:
-        names.append("outer_diameter")
-    return tuple(names)
+def constraint_names(structure):
+    """The constraints in margin order: the two Hertz requirements, then the spec's."""
+    return ("static_capacity", "life") + tuple(name for name, _, _ in structure.constraints)
 
 
-def quantities(spec, x, params):
-    """Physical quantities of the design x = (R, d) [mm] under scenario ``params``."""
-    R, d = x[0], x[1]
-    h, fr, loads = spec["hertz"], spec["friction"], spec["loads"]
-    layout = Layout(R, params["l"], params["gamma0"])
-    sol, rates = revolution(layout, spec["solver"]["n_theta"], "newton", with_rates=True)
-    friction_params = GREASES[fr["grease"]].replace(lam=fr["lam"])
-    gaf = friction.gaf_from_revolution(
-        layout,
-        sol,
-        rates,
-        loads["gaf_torque"],
-        friction_params,
-        fr["gaf_model"],
-        friction.DEFAULT_STROKE_WIDTH,
-    )
-    caps = hertz.capacities(
-        d,
-        R,
-        conformity=h["conformity"],
-        P_s=h["P_s"],
-        P_d=h["P_d"],
-        P_sd=h["P_sd"],
-        C_s=h["C_s"],
-        n_rollers=h["n_rollers"],
-    )
-    life_spec = spec["life"]
-    spectrum = hertz.LoadSpectrum(
-        **{
-            k: jnp.asarray(life_spec["spectrum"][k])
-            for k in ("torque", "speed", "vehicle_speed", "share")
+def bounds(structure, values):
+    """(lower, upper) arrays of the free variables, internal units."""
+    b = values["bounds"]
+    lower = jnp.stack([jnp.asarray(b[k])[..., 0] for k in structure.free], axis=-1)
+    upper = jnp.stack([jnp.asarray(b[k])[..., 1] for k in structure.free], axis=-1)
+    return lower, upper
+
+
+def full_design(structure, values, x):
+    """Every design variable (internal names and units) with the free ones taken from x."""
+    design = {name: values[section][key] for name, (section, key, _, _) in VARIABLES.items()}
+    for i, name in enumerate(structure.free):
+        design[name] = x[..., i]
+    return design
+
+
+def quantities(structure, values, design):
+    """The quantities the spec uses (see ``spec.QUANTITIES``), and two result codes.
+
+    The codes (``RESULTS``) are the worst of the halfshaft solve, the GAF and the
+    finiteness of the quantities, and the worst of the Hertz ellipse (κ) solves.
+    """
+    needs = structure.needs
+    R, d = design["R"], design["d_roller"]
+    layout = Layout(R, design["l"], design["gamma0_deg"])
+    h, loads = values["hertz"], values["loads"]
+    q, codes, hertz_codes = {}, [], []
+    if needs & set(KINEMATIC_QUANTITIES + GAF_QUANTITIES):
+        sol, rates = revolution(layout, structure.n_theta, structure.fidelity, with_rates=True)
+        # Metrics from the small unknowns (float32-accurate, one-sided slopes at γ0 = 0).
+        names = {
+            "irregularity": "irregularity",
+            "eccentricity": "ecc_max",
+            "gamma_ripple": "gamma_pp",
+            "roller_stroke": "roller_axial_stroke",
         }
+        wanted = [k for k in KINEMATIC_QUANTITIES if k in needs]
+        metrics = metrics_from(layout, sol, rates, [names[k] for k in wanted] + ["result"])
+        codes.append(metrics["result"])
+        for k in wanted:
+            q[k] = metrics[names[k]]
+        if "gamma_ripple" in q:
+            q["gamma_ripple"] = jnp.degrees(q["gamma_ripple"])
+        if needs & set(GAF_QUANTITIES):
+            params = friction.GREASE_A.replace(lam=design["lam"], mu_slp=design["mu_slp"])
+            gaf = friction.gaf_from_revolution(
+                layout,
+                sol,
+                rates,
+                loads["gaf_torque"],
+                params,
+                structure.gaf_model,
+                friction.DEFAULT_STROKE_WIDTH,
+            )
+            codes.append(gaf.result)
+            q.update(gaf_rms=gaf.rms, gaf_peak=gaf.peak, gaf_third_order=gaf.third_order)
+    if needs & {"static_capacity", "M_d", "M_sd"}:
+        caps = hertz.capacities(
+            d,
+            R,
+            conformity=design["conformity"],
+            P_s=h["P_s"],
+            P_d=h["P_d"],
+            P_sd=h["P_sd"],
+            C_s=h["C_s"],
+            n_rollers=structure.n_rollers,
+            gamma=design["gamma0_deg"],
+        )
+        q.update(static_capacity=caps.M_s, M_d=caps.M_d, M_sd=caps.M_sd)
+        hertz_codes.append(caps.result)
+    life = values["life"]
+    spectrum = hertz.LoadSpectrum(
+        torque=life["torque"],
+        speed=life["speed"],
+        vehicle_speed=life["vehicle_speed"],
+        share=life["share"],
     )
     conditions = hertz.WorkingConditions(
-        angle=jnp.asarray(life_spec["conditions"]["angle_rad"]),
-        share=jnp.asarray(life_spec["conditions"]["share"]),
+        angle=life["condition_angle"], share=life["condition_share"]
     )
-    life = hertz.joint_life(
+    life_result = hertz.joint_life(
         d,
         R,
         spectrum,
         conditions,
-        conformity=h["conformity"],
+        conformity=design["conformity"],
         P_d=h["P_d"],
         C_s=h["C_s"],
-        n_rollers=h["n_rollers"],
+        n_rollers=structure.n_rollers,
     )
-    return {
-        "irregularity": jnp.max(rates.psi) - jnp.min(rates.psi),
-        "gaf_rms": gaf.rms,
-        "outer_diameter": 2.0 * R + d,
-        "static_capacity": caps.M_s,
-        "life_km": life.km,
-        "R_over_d": R / d,
-        "converged": jnp.all(sol.converged),
-    }
+    q["life_km"] = life_result.km
+    hertz_codes.append(life_result.result)
+    q["outer_diameter"] = 2.0 * R + d
+    q["R_over_d"] = R / d
+    q = {k: q[k] for k in QUANTITIES if k in q and k in needs}
+    finite = jnp.all(jnp.stack([jnp.isfinite(v) for v in q.values()]))
+    codes.append(jnp.where(finite, RESULTS.successful, RESULTS.nonfinite))
+    return q, jnp.stack([worst(*codes), worst(*hertz_codes)])
 
 
-def objective_and_margins(spec, x, params):
-    """(objective, margins, quantities) of design x under ``params``; margins in constraint_names order."""
-    q = quantities(spec, x, params)
-    o = spec["objective"]
-    objective = (
-        params["w_irregularity"] * q["irregularity"] / o["irregularity_ref"]
-        + params["w_gaf"] * q["gaf_rms"] / o["gaf_rms_ref"]
-        + params["w_size"] * q["outer_diameter"] / o["size_ref"]
-    )
-    lo, hi = spec["constraints"]["R_over_d"]
-    loads = spec["loads"]
+def objective_and_margins(structure, values, x):
+    """(objective, margins, quantities, result code) of the free-variable vector x."""
+    q, code = quantities(structure, values, full_design(structure, values, x))
+    o = values["objective"]
+    objective = sum(o[f"w_{k}"] * q[k] / o[f"{k}_ref"] for k in structure.objective)
+    loads = values["loads"]
     margins = [
         jnp.log(q["static_capacity"] / (loads["shock_factor"] * loads["M_max"])),
-        jnp.log(q["life_km"] / spec["life"]["required_km"]),
-        jnp.log(q["R_over_d"] / lo),
-        jnp.log(hi / q["R_over_d"]),
+        jnp.log(q["life_km"] / values["life"]["required_km"]),
     ]
-    if "max_outer_diameter" in spec["constraints"]:
-        margins.append(jnp.log(spec["constraints"]["max_outer_diameter"] / q["outer_diameter"]))
-    return objective, jnp.stack(margins), q
+    for name, k, sense in structure.constraints:
+        limit = values["constraints"][name]
+        value = jnp.maximum(q[k], MARGIN_FLOOR * limit)
+        margins.append(jnp.log(limit / value) if sense == "max" else jnp.log(value / limit))
+    return jnp.asarray(objective), jnp.stack(margins), q, code
 
 
-def limits(spec):
-    """The limit each constraint compares its value with, for reports."""
-    loads = spec["loads"]
-    lo, hi = spec["constraints"]["R_over_d"]
+def limits(structure, values):
+    """name → (quantity, limit, sense, unit) of each constraint, for reports."""
+    loads = values["loads"]
     out = {
-        "static_capacity": ("static_capacity", loads["shock_factor"] * loads["M_max"], "≥", "N·m"),
-        "life": ("life_km", spec["life"]["required_km"], "≥", "km"),
-        "R_over_d_min": ("R_over_d", lo, "≥", "–"),
-        "R_over_d_max": ("R_over_d", hi, "≤", "–"),
+        "static_capacity": (
+            "static_capacity",
+            float(loads["shock_factor"] * loads["M_max"]),
+            "≥",
+            "N·m",
+        ),
+        "life": ("life_km", float(values["life"]["required_km"]), "≥", "km"),
     }
-    if "max_outer_diameter" in spec["constraints"]:
-        out["outer_diameter"] = (
-            "outer_diameter",
-            spec["constraints"]["max_outer_diameter"],
-            "≤",
-            "mm",
+    for name, k, sense in structure.constraints:
+        out[name] = (
+            k,
+            float(values["constraints"][name]),
+            "≤" if sense == "max" else "≥",
+            QUANTITIES[k][0],
         )
     return out
 
 
-def bounds(spec):
-    """(lower, upper) arrays of the design variables [mm]."""
-    b = spec["bounds"]
-    return np.array([b["R"][0], b["d_roller"][0]]), np.array([b["R"][1], b["d_roller"][1]])
+def to_spec_units(name, value):
+    """A design variable's internal value in its spec unit (γ0: rad → deg)."""
+    return math.degrees(value) if name == "gamma0_deg" else float(value)
 
 
-_EVALUATORS = {}
+def from_spec_units(name, value):
+    return math.radians(value) if name == "gamma0_deg" else float(value)
 
 
-def compiled(spec):
-    """The jit-compiled ``objective_and_margins`` of a spec (kept per Spec object)."""
-    key = id(spec)
-    if key not in _EVALUATORS:
-        _EVALUATORS[key] = (spec, jax.jit(functools.partial(objective_and_margins, spec)))
-    return _EVALUATORS[key][1]
+@functools.partial(jax.jit, static_argnums=0)
+def _evaluate(structure, values, x):
+    return objective_and_margins(structure, values, x)
+
+
+def check_design(structure, values, design):
+    """Check a ``{variable: value}`` design (spec units); returns it as floats."""
+    if not isinstance(design, dict):
+        raise TypeError(f"design = {design!r} must be a dict {{variable: value}}")
+    unknown = sorted(set(design) - set(VARIABLES))
+    if unknown:
+        raise ValueError(f"design keys {unknown} not allowed; allowed: {', '.join(VARIABLES)}")
+    missing = [k for k in structure.free if k not in design]
+    if missing:
+        raise ValueError(
+            f"design lacks the free variables {missing} (spec units: {', '.join(f'{k} [{VARIABLES[k][2]}]' for k in missing)})"
+        )
+    out = {}
+    for key, value in design.items():
+        if isinstance(value, bool) or not isinstance(
+            value, (numbers.Real, np.floating, np.integer)
+        ):
+            raise TypeError(
+                f"design[{key!r}] = {value!r} must be a real number [{VARIABLES[key][2]}]"
+            )
+        value = float(value)
+        low, high, low_open = VARIABLES[key][3]
+        ok = math.isfinite(value) and (value > low if low_open else value >= low)
+        ok = ok and (high is None or value <= high)
+        if not ok:
+            allowed = f"{'>' if low_open else '≥'} {low:g}" + (
+                f" and ≤ {high:g}" if high is not None else ""
+            )
+            raise ValueError(
+                f"design[{key!r}] = {value!r} is outside the allowed range: a finite number {allowed} {VARIABLES[key][2]}"
+            )
+        out[key] = value
+    check_layout_domain(  # the one layout-domain rule of the package
+        R=out.get("R", float(values["design"]["R"])),
+        l=out.get("l", float(values["layout"]["l"])),
+        gamma0=out.get("gamma0_deg"),
+        names={"R": "design['R']", "l": "design['l']", "gamma0": "design['gamma0_deg']"},
+        degrees=True,
+    )
+    return out
 
 
 def evaluate(spec, design):
-    """Objective and constraint margins of one design.
+    """Objective, constraint margins and quantities of one design.
 
     Args:
-        spec: a :class:`~optimize.spec.Spec` (``optimize.load_spec()``).
-        design: ``{"R": mm, "d_roller": mm}``; optionally ``"l"`` [mm] and
-            ``"gamma0_deg"`` to evaluate on another layout.
+        spec: a [`Spec`][tripodjax.optimize.Spec] (``optimize.load_spec()``).
+        design: ``{variable: value}`` in spec units (``R``, ``d_roller``, ``l`` [mm],
+            ``gamma0_deg`` [deg], ``conformity``, ``lam``, ``mu_slp``). Every free
+            variable is required; a fixed one given here overrides its spec value.
 
     Returns:
-        ``{"objective": float, "constraints": {name: margin}}`` — a margin ≥ 0
-        means satisfied (see the module docstring), the bounds included.
-        Jit-compiled: after the first call with a spec, a call costs milliseconds.
-        Runs in float64 (inside ``jax.enable_x64``, scoped to the call).
+        ``{"objective": float, "constraints": {name: margin}, "quantities": {name: value},
+        "result": RESULTS name}`` — a margin ≥ 0 means satisfied (see the module
+        docstring), the bounds of the free variables included. Jit-compiled once per
+        spec structure; runs in float64 (inside ``jax.enable_x64``, scoped to the call).
+
+    Example:
+        >>> from tripodjax import optimize
+        >>> spec = optimize.load_spec()
+        >>> out = optimize.evaluate(spec, {"R": 21.3, "d_roller": 27.8})
+        >>> round(out["quantities"]["outer_diameter"], 1)
+        70.4
     """
-    unknown = set(design) - {"R", "d_roller", "l", "gamma0_deg"}
-    if unknown or not {"R", "d_roller"} <= set(design):
-        raise ValueError(
-            f"design keys {sorted(design)} not allowed: need R and d_roller [mm], optionally l [mm] and gamma0_deg"
-        )
-    overrides = {}
-    if "l" in design:
-        overrides["l"] = float(design["l"])
-    if "gamma0_deg" in design:
-        overrides["gamma0"] = np.radians(float(design["gamma0_deg"]))
-    x = np.array([float(design["R"]), float(design["d_roller"])])
+    structure = spec.structure
+    design = check_design(structure, spec.values, design)
+    values = jax.tree_util.tree_map(np.asarray, spec.values)
+    for key, value in design.items():
+        if key not in structure.free:
+            section, name = VARIABLES[key][:2]
+            values[section] = dict(
+                values[section], **{name: np.asarray(from_spec_units(key, value))}
+            )
+    x = np.array([from_spec_units(k, design[k]) for k in structure.free])
     with jax.enable_x64(True):  # the design problem runs in float64; scoped to this call
-        objective, margins, _ = compiled(spec)(jnp.asarray(x), scenario(spec, **overrides))
+        objective, margins, q, code = call(_evaluate, structure, values, jnp.asarray(x))
         objective, margins = float(objective), [float(m) for m in margins]
-    lower, upper = bounds(spec)
+        q = {k: float(v) for k, v in q.items()}
+    result = dict(zip(constraint_names(structure), margins, strict=True))
+    lower, upper = (np.asarray(a) for a in bounds(structure, values))
     span = upper - lower
-    result = dict(zip(constraint_names(spec), margins, strict=False))
-    for i, name in enumerate(VARIABLES):
+    for i, name in enumerate(structure.free):
         result[f"{name}_lower_bound"] = float((x[i] - lower[i]) / span[i])
         result[f"{name}_upper_bound"] = float((upper[i] - x[i]) / span[i])
-    return {"objective": objective, "constraints": result}
+    return {
+        "objective": objective,
+        "constraints": result,
+        "quantities": q,
+        "result": RESULTS(int(np.max(code))).name,
+    }
+
+
+def evaluate_catalogue(spec):
+    """Every GE and GI catalogue size (seed §1.1.2) under the spec, and the best feasible one.
+
+    R and d come from the catalogue, every other variable stays at its fixed spec
+    value; the bounds of the design variables do not apply. Returns
+    ``(entries, choice)``: entries ``{"family", "size", "R_mm", "d_roller_mm",
+    "feasible", "objective", "margins", "quantities"}`` with the margins that
+    [`evaluate`][tripodjax.optimize.evaluate] gives (bounds left out), and the feasible
+    entry with the lowest objective (None when no size is feasible).
+    """
+    from tripodjax import catalogue
+
+    fixed = {
+        "R": float(spec.values["design"]["R"]),
+        "d_roller": float(spec.values["design"]["d_roller"]),
+        "l": float(spec.values["layout"]["l"]),
+        "gamma0_deg": math.degrees(float(spec.values["layout"]["gamma0"])),
+        "conformity": float(spec.values["hertz"]["conformity"]),
+        "lam": float(spec.values["friction"]["lam"]),
+        "mu_slp": float(spec.values["friction"]["mu_slp"]),
+    }
+    entries = []
+    for family, table in (("GE", catalogue.GE), ("GI", catalogue.GI)):
+        for size, row in table.items():
+            design = {k: fixed[k] for k in spec.structure.free} | {
+                "R": row["R"],
+                "d_roller": row["d"],
+            }
+            try:
+                out = evaluate(_unbounded(spec), design)
+            except ValueError as error:  # outside the halfshaft domain (R/l > 0.2)
+                entries.append(
+                    {
+                        "family": family,
+                        "size": size,
+                        "R_mm": row["R"],
+                        "d_roller_mm": row["d"],
+                        "feasible": False,
+                        "objective": None,
+                        "margins": {},
+                        "quantities": {},
+                        "note": str(error),
+                    }
+                )
+                continue
+            margins = {k: v for k, v in out["constraints"].items() if not k.endswith("_bound")}
+            entries.append(
+                {
+                    "family": family,
+                    "size": size,
+                    "R_mm": row["R"],
+                    "d_roller_mm": row["d"],
+                    "feasible": bool(all(m >= 0 for m in margins.values())),
+                    "objective": out["objective"],
+                    "margins": margins,
+                    "quantities": out["quantities"],
+                }
+            )
+    feasible = [e for e in entries if e["feasible"] and math.isfinite(e["objective"])]
+    choice = min(feasible, key=lambda e: e["objective"]) if feasible else None
+    return entries, choice
+
+
+def _unbounded(spec):
+    """The spec with R and d_roller free over a box wide enough for any catalogue size."""
+    import dataclasses
+
+    structure = spec.structure
+    free = tuple(k for k in VARIABLES if k in structure.free or k in ("R", "d_roller"))
+    b = dict(spec.values["bounds"])
+    b.setdefault("R", np.array([1.0, 1000.0]))
+    b.setdefault("d_roller", np.array([1.0, 1000.0]))
+    values = dict(spec.values, bounds=b)
+    return dataclasses.replace(
+        spec, structure=dataclasses.replace(structure, free=free), values=values
+    )

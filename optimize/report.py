@@ -1,14 +1,16 @@
-"""The report of an optimisation: JSON and PNG plots, written atomically."""
+"""The report of an optimisation: strict JSON and PNG plots, written atomically.
+
+Plots draw on ``matplotlib.figure.Figure`` objects (no pyplot state, no backend
+switch): importing this module changes nothing in the process.
+"""
 
 import json
+import math
 import os
 import platform
 import tempfile
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+from tripodjax.optimize.spec import QUANTITIES, REPORT_KEYS
 
 
 def versions():
@@ -27,40 +29,101 @@ def versions():
     }
 
 
-def report_dict(result, spec, pareto=(), source="default"):
-    """Everything a reader needs: design, objective, constraints, KKT residual, spec, versions."""
-    return {
-        "design": {"R_mm": result.design["R"], "d_roller_mm": result.design["d_roller"]},
+def strict(value, path="", notes=None):
+    """``value`` with every non-finite float replaced by None (noted in ``notes``): strict JSON."""
+    if isinstance(value, dict):
+        return {
+            str(k): strict(v, f"{path}.{k}" if path else str(k), notes) for k, v in value.items()
+        }
+    if isinstance(value, (list, tuple)):
+        return [strict(v, f"{path}[{i}]", notes) for i, v in enumerate(value)]
+    if hasattr(value, "item") and not isinstance(value, (str, bytes)):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        if notes is not None:
+            notes.append(f"{path} = {value!r} is not finite; written as null")
+        return None
+    return value
+
+
+def design_keys(design):
+    return {REPORT_KEYS[k]: v for k, v in design.items()}
+
+
+def report_dict(
+    result, spec, *, pareto=(), catalogue=None, choice=None, full_fidelity=None, source="default"
+):
+    """Everything a reader needs: design, status, constraints, sensitivities, catalogue, spec."""
+    report = {
+        "design": design_keys(result.design),
+        "free_variables": list(spec.structure.free),
         "objective": result.objective,
         "converged": result.converged,
+        "status": {
+            "kkt_converged": result.kkt_converged,
+            "halfshaft_converged": result.halfshaft_converged,
+            "hertz_converged": result.hertz_converged,
+            "feasible": result.feasible,
+            "result": result.result,
+        },
         "kkt_residual": result.kkt_residual,
-        "tolerance": spec["solver"]["tolerance"],
+        "tolerance": float(spec.values["solver"]["tolerance"]),
+        "fidelity": {"solver": result.fidelity, "n_theta": spec.structure.n_theta},
         "constraints": result.constraints,
         "quantities": result.quantities,
+        "units": {q: QUANTITIES[q][0] for q in result.quantities},
         "multipliers": result.multipliers,
         "history": result.history,
         "starts": result.starts,
-        "pareto_front": [
-            {
-                "w_gaf": w,
-                "R_mm": r.design["R"],
-                "d_roller_mm": r.design["d_roller"],
-                "gaf_rms_N": r.quantities["gaf_rms"],
-                "outer_diameter_mm": r.quantities["outer_diameter"],
-                "irregularity": r.quantities["irregularity"],
-                "converged": r.converged,
-            }
-            for w, r in pareto
-        ],
-        "spec_source": source,
-        "spec": spec.resolved,
-        "versions": versions(),
     }
+    if full_fidelity is not None:
+        report["full_fidelity"] = full_fidelity
+    if result.sensitivities is not None:
+        report["sensitivities"] = result.sensitivities["derivatives"]
+        report["sensitivity_notes"] = {
+            k: result.sensitivities[k]
+            for k in ("active", "on_bound", "near_switch", "condition_number")
+        }
+        if result.sensitivities["near_switch"]:
+            report["sensitivity_notes"]["warning"] = (
+                "constraints about to switch (multiplier or margin near zero): "
+                + ", ".join(result.sensitivities["near_switch"])
+                + "; the derivatives hold on one side only"
+            )
+    if catalogue is not None:
+        report["catalogue"] = catalogue
+        report["catalogue_choice"] = choice
+    report["pareto_front"] = [
+        {
+            "w_gaf_rms": w,
+            **design_keys(r.design),
+            "gaf_rms_N": r.quantities.get("gaf_rms"),
+            "outer_diameter_mm": r.quantities.get("outer_diameter"),
+            "irregularity": r.quantities.get("irregularity"),
+            "converged": r.converged,
+        }
+        for w, r in pareto
+    ]
+    report["spec_source"] = source
+    report["spec"] = spec.resolved
+    report["versions"] = versions()
+    notes = []
+    report = strict(report, notes=notes)
+    if notes:
+        report["nonfinite_notes"] = notes
+    return report
 
 
-def _figure_convergence(result):
-    fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(11, 4))
-    it = range(1, len(result.history["objective"]) + 1)
+def _figure(**kw):
+    from matplotlib.figure import Figure
+
+    return Figure(**kw)
+
+
+def figure_convergence(result):
+    fig = _figure(figsize=(11, 4))
+    ax0, ax1 = fig.subplots(1, 2)
+    it = range(len(result.history["objective"]))
     ax0.plot(it, result.history["objective"], "o-")
     ax0.set(
         title="objective of the chosen start", xlabel="outer iteration [–]", ylabel="objective [–]"
@@ -73,14 +136,16 @@ def _figure_convergence(result):
     return fig
 
 
-def _figure_margins(result):
-    fig, ax = plt.subplots(figsize=(8, 4))
+def figure_margins(result):
+    fig = _figure(figsize=(8, 4))
+    ax = fig.subplots()
     names = list(result.constraints)
     margins = [result.constraints[n]["margin"] for n in names]
     ax.barh(names, margins, color=["C2" if m >= 0 else "C3" for m in margins])
     for y, m in enumerate(margins):
+        label = f"{m:+.2e}" + (" (active)" if abs(m) < 1e-3 else "")
         ax.annotate(
-            f"{m:+.2e}" + (" (active)" if abs(m) < 1e-3 else ""),
+            label,
             (max(m, 0), y),
             xytext=(4, 0),
             textcoords="offset points",
@@ -97,23 +162,23 @@ def _figure_margins(result):
     return fig
 
 
-def _figure_pareto(result, pareto):
-    fig, ax = plt.subplots(figsize=(7, 5))
-    if pareto:
-        size = [r.quantities["outer_diameter"] for _, r in pareto]
-        gaf = [r.quantities["gaf_rms"] for _, r in pareto]
-        ax.plot(size, gaf, "o-", label="Pareto front (GAF weight swept)")
-        labels = {}  # weights that land on the same design share one label
-        for (w, _), s, g in zip(pareto, size, gaf, strict=False):
-            labels.setdefault((round(s, 3), round(g, 1)), []).append(f"{w:g}")
-        for (s, g), ws in labels.items():
-            ax.annotate(
-                "w_gaf = " + ", ".join(ws),
-                (s, g),
-                textcoords="offset points",
-                xytext=(5, 5),
-                fontsize=8,
-            )
+def figure_pareto(result, pareto):
+    fig = _figure(figsize=(7, 5))
+    ax = fig.subplots()
+    size = [r.quantities["outer_diameter"] for _, r in pareto]
+    gaf = [r.quantities["gaf_rms"] for _, r in pareto]
+    ax.plot(size, gaf, "o-", label="Pareto front (GAF weight swept)")
+    labels = {}  # weights that land on the same design share one label
+    for (w, _), s, g in zip(pareto, size, gaf, strict=True):
+        labels.setdefault((round(s, 3), round(g, 1)), []).append(f"{w:g}")
+    for (s, g), ws in labels.items():
+        ax.annotate(
+            "w_gaf_rms = " + ", ".join(ws),
+            (s, g),
+            textcoords="offset points",
+            xytext=(5, 5),
+            fontsize=8,
+        )
     ax.plot(
         [result.quantities["outer_diameter"]],
         [result.quantities["gaf_rms"]],
@@ -132,38 +197,103 @@ def _figure_pareto(result, pareto):
     return fig
 
 
-def write(out_dir, result, spec, pareto=(), source="default"):
-    """Write report.json, convergence.png, constraint_margins.png and pareto_front.png into out_dir.
+def figure_tornado(result, count=12):
+    """The largest elasticities of the optimal objective and design (d ln y / d ln p)."""
+    el = result.sensitivities["elasticities"]
+    outputs = list(next(iter(el.values()))) if el else ["objective"]
+    rows = sorted(
+        el,
+        key=lambda k: -max((abs(v) for v in el[k].values() if v == v), default=0.0),
+    )[:count][::-1]
+    fig = _figure(figsize=(9, 0.45 * len(rows) + 1.8))
+    ax = fig.subplots()
+    height = 0.8 / len(outputs)
+    for j, out in enumerate(outputs):
+        values = [el[k].get(out, 0.0) for k in rows]
+        ax.barh([i + j * height for i in range(len(rows))], values, height=height, label=out)
+    ax.set_yticks([i + 0.4 - height / 2 for i in range(len(rows))], rows, fontsize=8)
+    ax.axvline(0, color="k", lw=0.8)
+    ax.set(
+        title="sensitivities of the optimum: elasticities (p/y)·dy/dp",
+        xlabel="elasticity [–] (% change of y per % change of p)",
+    )
+    ax.grid(alpha=0.3, axis="x")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
 
-    Every file is written under a temporary name in out_dir and renamed into
-    place only when all of them are complete, report.json last: a reader never
-    sees a half-written report.
+
+def figure_catalogue(result, catalogue, choice):
+    """Catalogue sizes on the (R, d) plane, feasible or not, with the ad hoc optimum."""
+    fig = _figure(figsize=(7, 5.5))
+    ax = fig.subplots()
+    for family, marker in (("GE", "s"), ("GI", "^")):
+        for feasible, color in ((True, "C2"), (False, "C3")):
+            pts = [e for e in catalogue if e["family"] == family and e["feasible"] == feasible]
+            if pts:
+                ax.scatter(
+                    [e["R_mm"] for e in pts],
+                    [e["d_roller_mm"] for e in pts],
+                    marker=marker,
+                    color=color,
+                    label=f"{family} {'feasible' if feasible else 'infeasible'}",
+                )
+            for e in pts:
+                ax.annotate(
+                    e["size"],
+                    (e["R_mm"], e["d_roller_mm"]),
+                    xytext=(3, 3),
+                    textcoords="offset points",
+                    fontsize=7,
+                )
+    if choice is not None:
+        ax.scatter(
+            [choice["R_mm"]],
+            [choice["d_roller_mm"]],
+            s=200,
+            facecolors="none",
+            edgecolors="k",
+            label=f"catalogue choice {choice['family']} {choice['size']}",
+        )
+    ax.plot([result.design["R"]], [result.design["d_roller"]], "r*", ms=15, label="ad hoc optimum")
+    ax.set(
+        title="catalogue sizes and the ad hoc design",
+        xlabel="pitch-circle radius R [mm]",
+        ylabel="roller diameter d [mm]",
+    )
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def write(out_dir, report, figures):
+    """Write report.json and the figures ``{name: Figure}`` into out_dir, atomically.
+
+    Every file is written under a temporary name in out_dir and renamed into place
+    only when all of them are complete, report.json last: a reader never sees a
+    half-written report, and a failure leaves the older report intact.
     """
     os.makedirs(out_dir, exist_ok=True)
     staged = []
+    umask = os.umask(0)
+    os.umask(umask)
     try:
-        for name, make in (
-            ("convergence.png", lambda: _figure_convergence(result)),
-            ("constraint_margins.png", lambda: _figure_margins(result)),
-            ("pareto_front.png", lambda: _figure_pareto(result, list(pareto))),
-        ):
-            fig = make()
+        for name, fig in figures.items():
             fd, tmp = tempfile.mkstemp(prefix=f".{name}.", dir=out_dir)
             os.close(fd)
             staged.append((tmp, name))
             fig.savefig(tmp, format="png", dpi=110)
-            plt.close(fig)
         fd, tmp = tempfile.mkstemp(prefix=".report.json.", dir=out_dir)
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            json.dump(report_dict(result, spec, pareto, source), f, indent=2, ensure_ascii=False)
         staged.append((tmp, "report.json"))
-    except BaseException:
-        for tmp, _ in staged:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            json.dump(report, f, indent=2, ensure_ascii=False, allow_nan=False)
+        while staged:
+            tmp, name = staged[0]
+            os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600 files
+            os.replace(tmp, os.path.join(out_dir, name))
+            staged.pop(0)
+    finally:
+        for tmp, _ in staged:  # whatever was not renamed into place
             if os.path.exists(tmp):
                 os.remove(tmp)
-        raise
-    umask = os.umask(0)
-    os.umask(umask)
-    for tmp, name in staged:
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600 files
-        os.replace(tmp, os.path.join(out_dir, name))

@@ -1,133 +1,263 @@
 """Augmented-Lagrangian optimiser for the joint-design problem, on optax's L-BFGS.
 
-Bounds are handled by reparametrisation, x = lo + (hi − lo)·sigmoid(z); the
-inequality constraints c_i(x) ≥ 0 by the augmented Lagrangian
+Bounds are handled by reparametrisation, x = lo + (hi − lo)·sigmoid(z), which
+also scales every variable to the width of its bounds (mm, rad and unitless
+constants converge alike); the inequality constraints c_i(x) ≥ 0 by the
+augmented Lagrangian
 
     L(z; λ, ρ) = f(x) + Σ_i [max(0, λ_i − ρ c_i)² − λ_i²] / (2ρ),
 
-minimised over z by ``optax.lbfgs`` (zoom line search) for ``inner_steps``
-iterations, after which λ_i ← max(0, λ_i − ρ c_i) and ρ grows while the
-constraints stay violated. Gradients come from the implicit solver and the
-differentiable Hertz and GAF models. Several starts (a deterministic grid over
-the bounds) run at once through ``vmap``; so do the members of a layout family
-and the weights of a Pareto sweep.
+minimised over z by ``optax.lbfgs`` (backtracking line search) for at most
+``inner_steps`` iterations (fewer once |∂L/∂z| ≤ tolerance/10), after which λ_i ← max(0, λ_i − ρ c_i) and ρ grows
+while the constraints stay violated. Each outer iteration evaluates the
+objective, the margins and their Jacobian once (forward mode through the
+implicit halfshaft solve) and stops a problem when its KKT residual — the
+largest of the projected gradient of the Lagrangian f − Σ λ_i c_i w.r.t. x
+scaled by the bound widths, the constraint violation and the complementarity
+|λ_i c_i| — is below ``solver.tolerance``. The solver asks for margins
+≥ 2·tolerance, so the proposed design is strictly feasible when re-evaluated.
 
-The solver asks for margins ≥ 10·tolerance, so the proposed design is
-strictly feasible when re-evaluated. Stopping: the KKT residual — the largest of the projected gradient of the
-Lagrangian f − Σ λ_i c_i w.r.t. x scaled by the bound widths, the constraint
-violation and the complementarity |λ_i c_i| — below ``solver.tolerance``.
+Every problem of a call — each start of each scenario (the spec's own, the
+members of a layout family, the weights of a Pareto sweep) — is one entry of a
+single flat batch: one ``vmap`` over a ``while_loop``, compiled once per spec
+*structure* and batch size. The spec's numbers are traced, so solving a spec
+that differs only in its numbers reuses the compiled code.
 """
 
 import dataclasses
 import functools
 import math
-import sys
-import time
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import optax
 
+from tripodjax._checks import check_layout_domain
+from tripodjax.optimize._compiled import call
 from tripodjax.optimize.problem import (
-    VARIABLES,
     bounds,
-    compiled,
     constraint_names,
     limits,
     objective_and_margins,
-    scenario,
+    to_spec_units,
 )
+from tripodjax.optimize.spec import REPORT_KEYS
+from tripodjax.progress import resolve
+from tripodjax.results import RESULTS
 
 RHO_START = 10.0
 RHO_GROWTH = 4.0
 RHO_MAX = 1e6
 BOUND_TOLERANCE = 1e-6  # a variable this close (relative to its bound width) counts as on the bound
-SAFETY = (
-    10.0  # the solver asks for margins ≥ SAFETY · tolerance, so the design is strictly feasible
-)
+ARMIJO = 1e-4  # sufficient-decrease constant of the backtracking search
+BACKTRACK = 0.5  # step reduction per backtrack
+MAX_BACKTRACKS = 30
+INNER_FRACTION = 0.1  # an inner L-BFGS run stops at |∂L/∂z| ≤ INNER_FRACTION · tolerance
+# The solver asks for margins ≥ SAFETY · tolerance, so the design is strictly feasible (by at
+# least one tolerance once the KKT criterion holds) and moves by ~2·tolerance relative at most.
+SAFETY = 2.0
+_PRIMES = (2, 3, 5, 7, 11, 13, 17)
 
 
-def start_points(spec):
-    """Deterministic starts in z-space: a grid over the interior of the bounds."""
-    n = spec["solver"]["starts"]
-    per_axis = max(1, math.ceil(math.sqrt(n)))
-    fractions = (np.arange(per_axis) + 0.5) / per_axis
-    grid = np.array([(a, b) for a in fractions for b in fractions])[:n]
-    return jnp.asarray(np.log(grid / (1 - grid)))
+def start_points(structure):
+    """Deterministic starts in z-space: a grid (≤ 2 free variables) or a Halton set over the bounds."""
+    n, k = len(structure.free), structure.starts
+    if n <= 2:
+        per_axis = max(1, math.ceil(k ** (1.0 / n)))
+        fractions = (np.arange(per_axis) + 0.5) / per_axis
+        grid = np.stack(np.meshgrid(*[fractions] * n, indexing="ij"), -1).reshape(-1, n)[:k]
+    else:
+        grid = np.full((k, n), 0.5)
+        for i in range(1, k):  # the box centre first, then Halton points
+            for j in range(n):
+                f, r, m = 1.0, 0.0, i
+                while m:
+                    f /= _PRIMES[j]
+                    r += f * (m % _PRIMES[j])
+                    m //= _PRIMES[j]
+                grid[i, j] = 0.05 + 0.9 * r
+    return np.log(grid / (1.0 - grid))
 
 
-def _to_x(z, lower, upper):
-    return lower + (upper - lower) * jax.nn.sigmoid(z)
+def _evaluation(structure, values):
+    """Functions of one problem: x(z), and (f, c, ∇f, J, q, code) at x by forward mode."""
+    lower, upper = bounds(structure, values)
+    offset = SAFETY * values["solver"]["tolerance"]
+
+    def to_x(z):
+        return lower + (upper - lower) * jax.nn.sigmoid(z)
+
+    def vector(x):
+        f, c, q, code = objective_and_margins(structure, values, x)
+        return jnp.concatenate([f[None], c - offset]), (q, code)
+
+    def with_jacobian(x):
+        basis = jnp.eye(x.shape[0], dtype=x.dtype)
+
+        def directional(t):
+            return jax.jvp(vector, (x,), (t,), has_aux=True)
+
+        value, jac, (q, code) = jax.vmap(directional, out_axes=(None, 0, None))(basis)
+        return value[0], value[1:], jac[:, 0], jac[:, 1:].T, q, code
+
+    return lower, upper, to_x, with_jacobian
 
 
-def _kkt(spec, x, lam, params, lower, upper, offset):
-    """KKT residual at x with multipliers λ (stationarity, feasibility, complementarity)."""
-
-    def lagrangian(x):
-        f, c, _ = objective_and_margins(spec, x, params)
-        return f - jnp.dot(lam, c - offset)
-
-    g = jax.grad(lagrangian)(x) * (upper - lower)
-    at_lower = (x - lower) <= BOUND_TOLERANCE * (upper - lower)
-    at_upper = (upper - x) <= BOUND_TOLERANCE * (upper - lower)
+def _kkt(x, lam, c, grad_f, jac, lower, upper):
+    """KKT residual (stationarity scaled by the bound widths, feasibility, complementarity)."""
+    width = upper - lower
+    g = (grad_f - jac.T @ lam) * width
+    at_lower = (x - lower) <= BOUND_TOLERANCE * width
+    at_upper = (upper - x) <= BOUND_TOLERANCE * width
     g = jnp.where(at_lower & (g > 0), 0.0, g)
     g = jnp.where(at_upper & (g < 0), 0.0, g)
-    _, c, _ = objective_and_margins(spec, x, params)
-    c = c - offset
     stationarity = jnp.max(jnp.abs(g))
     feasibility = jnp.max(jnp.maximum(0.0, -c))
     complementarity = jnp.max(jnp.abs(lam * c))
     return jnp.maximum(stationarity, jnp.maximum(feasibility, complementarity))
 
 
-def _outer_step(spec, z, lam, rho, params, lower, upper):
-    """One augmented-Lagrangian iteration for one start: L-BFGS on z, then λ and ρ updates."""
+def solve_problem(structure, values, z0):
+    """Optimise one problem from start z0 (vmap this over a batch). Returns a dict of arrays.
 
-    offset = SAFETY * spec["solver"]["tolerance"]
+    One flat ``while_loop`` whose every iteration evaluates the model once (with its
+    Jacobian, forward mode) at a trial point and then plays the role that point has:
+    a line-search trial of the inner L-BFGS run, the end of that run (multiplier and
+    penalty update, KKT check), or the start. One copy of the model in the compiled
+    program keeps tracing and compilation short.
+    """
+    lower, upper, to_x, with_jacobian = _evaluation(structure, values)
+    tolerance = values["solver"]["tolerance"]
+    offset = SAFETY * tolerance
+    dtype = z0.dtype
+    lbfgs = optax.scale_by_lbfgs()
 
-    def augmented(z):
-        f, c, _ = objective_and_margins(spec, _to_x(z, lower, upper), params)
-        c = c - offset
-        return f + jnp.sum(jnp.maximum(0.0, lam - rho * c) ** 2 - lam**2) / (2.0 * rho)
+    def augmented(z, lam, rho, f, c, grad_f, jac):
+        """L(z; λ, ρ) and ∂L/∂z from an evaluation at x(z)."""
+        sig = jax.nn.sigmoid(z)
+        active = jnp.maximum(0.0, lam - rho * c)
+        value = f + jnp.sum(active**2 - lam**2) / (2.0 * rho)
+        grad = (grad_f - jac.T @ active) * (upper - lower) * sig * (1.0 - sig)
+        return jnp.where(jnp.isfinite(value), value, jnp.inf), grad
 
-    opt = optax.lbfgs(
-        linesearch=optax.scale_by_backtracking_linesearch(
-            max_backtracking_steps=20, store_grad=True
+    def pick(flag, new, old):
+        return jax.tree_util.tree_map(lambda a, b: jnp.where(flag, a, b), new, old)
+
+    shapes = jax.eval_shape(with_jacobian, to_x(z0))
+    evaluation = jax.tree_util.tree_map(lambda a: jnp.zeros(a.shape, a.dtype), shapes)
+    nan_history = jnp.full((structure.max_outer + 1,), jnp.nan, dtype)
+    state = dict(
+        start=jnp.bool_(True),
+        done=jnp.bool_(False),
+        k=jnp.int32(0),  # outer iterations finished
+        i=jnp.int32(0),  # accepted steps of the current inner run
+        j=jnp.int32(0),  # backtracks of the current line search
+        inner_iterations=jnp.int32(0),
+        z=z0,
+        evaluation=evaluation,
+        lam=jnp.zeros(shapes[1].shape, dtype),
+        rho=jnp.asarray(RHO_START, dtype),
+        kkt=jnp.asarray(jnp.inf, dtype),
+        value=jnp.asarray(jnp.inf, dtype),
+        grad=jnp.zeros_like(z0),
+        direction=jnp.zeros_like(z0),
+        slope=jnp.asarray(0.0, dtype),
+        alpha=jnp.asarray(0.0, dtype),
+        memory=lbfgs.init(z0),
+        history_objective=nan_history,
+        history_kkt=nan_history,
+    )
+
+    def iterate(s):
+        y = s["z"] + s["alpha"] * s["direction"]
+        trial = with_jacobian(to_x(y))
+        f, c, grad_f, jac = trial[:4]
+        value, grad = augmented(y, s["lam"], s["rho"], f, c, grad_f, jac)
+        armijo = value <= s["value"] + ARMIJO * s["alpha"] * s["slope"]
+        accepted = jnp.logical_or(s["start"], armijo)
+        j = jnp.where(accepted, 0, s["j"] + 1)
+        stalled = jnp.logical_and(jnp.logical_not(accepted), j >= MAX_BACKTRACKS)
+        z = jnp.where(accepted, y, s["z"])
+        current = pick(accepted, trial, s["evaluation"])
+        value = jnp.where(accepted, value, s["value"])
+        grad = jnp.where(accepted, grad, s["grad"])
+        step = jnp.logical_and(accepted, jnp.logical_not(s["start"]))
+        i = s["i"] + step.astype(jnp.int32)
+        small = jnp.max(jnp.abs(grad)) <= INNER_FRACTION * tolerance
+        run_over = jnp.logical_or(i >= structure.inner_steps, small)
+        inner_over = s["start"] | stalled | (step & run_over)
+        # The end of an inner run: multipliers, penalty, KKT residual (no update at the start).
+        f, c, grad_f, jac = current[:4]
+        first = s["k"] == 0
+        lam_new = jnp.where(first, s["lam"], jnp.maximum(0.0, s["lam"] - s["rho"] * c))
+        violated = jnp.max(jnp.maximum(0.0, -c)) > tolerance
+        grow = jnp.logical_and(jnp.logical_not(first), violated)
+        rho_new = jnp.where(grow, jnp.minimum(s["rho"] * RHO_GROWTH, RHO_MAX), s["rho"])
+        kkt = _kkt(to_x(z), lam_new, c, grad_f, jac, lower, upper)
+        kkt = jnp.where(jnp.isfinite(kkt), kkt, jnp.inf)
+        done = inner_over & ((kkt <= tolerance) | (s["k"] >= structure.max_outer))
+        lam = jnp.where(inner_over, lam_new, s["lam"])
+        rho = jnp.where(inner_over, rho_new, s["rho"])
+        # A new inner run starts from z on the updated Lagrangian.
+        restart_value, restart_grad = augmented(z, lam, rho, f, c, grad_f, jac)
+        value = jnp.where(inner_over, restart_value, value)
+        grad = jnp.where(inner_over, restart_grad, grad)
+        memory = pick(inner_over, lbfgs.init(z), s["memory"])
+        # A new direction after an accepted step or a restart; else halve the step.
+        fresh = accepted | inner_over
+        direction, new_memory = lbfgs.update(grad, memory, z)
+        direction = -direction
+        slope = jnp.dot(grad, direction)
+        descent = slope < 0
+        direction = jnp.where(descent, direction, -grad)
+        slope = jnp.where(descent, slope, -jnp.dot(grad, grad))
+        k = s["k"]
+        return dict(
+            start=jnp.bool_(False),
+            done=done,
+            k=k + inner_over.astype(jnp.int32),
+            i=jnp.where(inner_over, 0, i),
+            j=j,
+            inner_iterations=s["inner_iterations"] + step.astype(jnp.int32),
+            z=z,
+            evaluation=current,
+            lam=lam,
+            rho=rho,
+            kkt=jnp.where(inner_over, kkt, s["kkt"]),
+            value=value,
+            grad=grad,
+            direction=jnp.where(fresh, direction, s["direction"]),
+            slope=jnp.where(fresh, slope, s["slope"]),
+            alpha=jnp.where(fresh, 1.0, s["alpha"] * BACKTRACK),
+            memory=pick(fresh, new_memory, memory),
+            history_objective=jnp.where(
+                inner_over, s["history_objective"].at[k].set(f), s["history_objective"]
+            ),
+            history_kkt=jnp.where(inner_over, s["history_kkt"].at[k].set(kkt), s["history_kkt"]),
         )
+
+    s = jax.lax.while_loop(lambda s: jnp.logical_not(s["done"]), iterate, state)
+    f, c, _, _, q, code = s["evaluation"]
+    return dict(
+        x=to_x(s["z"]),
+        lam=s["lam"],
+        objective=f,
+        margins=c + offset,
+        kkt=s["kkt"],
+        code=code,
+        outer_iterations=s["k"] - 1,
+        inner_iterations=s["inner_iterations"],
+        quantities=q,
+        history_objective=s["history_objective"],
+        history_kkt=s["history_kkt"],
     )
-    value_and_grad = optax.value_and_grad_from_state(augmented)
-
-    def inner(carry, _):
-        z, state = carry
-        value, grad = value_and_grad(z, state=state)
-        updates, state = opt.update(grad, state, z, value=value, grad=grad, value_fn=augmented)
-        return (optax.apply_updates(z, updates), state), None
-
-    (z, _), _ = jax.lax.scan(inner, (z, opt.init(z)), None, length=spec["solver"]["inner_steps"])
-    x = _to_x(z, lower, upper)
-    f, c, _ = objective_and_margins(spec, x, params)
-    c = c - offset
-    new_lam = jnp.maximum(0.0, lam - rho * c)
-    violation = jnp.max(jnp.maximum(0.0, -c))
-    new_rho = jnp.where(
-        violation > spec["solver"]["tolerance"], jnp.minimum(rho * RHO_GROWTH, RHO_MAX), rho
-    )
-    kkt = _kkt(spec, x, new_lam, params, lower, upper, offset)
-    return z, new_lam, new_rho, f, c, kkt
 
 
-_STEPS = {}
-
-
-def _compiled_step(spec):
-    """The jit-compiled outer step, vmapped over starts and then over scenarios (kept per Spec)."""
-    key = id(spec)
-    if key not in _STEPS:
-        step = functools.partial(_outer_step, spec)
-        per_start = jax.vmap(step, in_axes=(0, 0, 0, None, None, None))
-        _STEPS[key] = (spec, jax.jit(jax.vmap(per_start, in_axes=(0, 0, 0, 0, None, None))))
-    return _STEPS[key][1]
+@functools.partial(jax.jit, static_argnums=0)
+def solve_batch(structure, values, z0):
+    """Every problem of a flat batch: ``values`` and ``z0`` carry a leading batch axis."""
+    return jax.vmap(functools.partial(solve_problem, structure))(values, z0)
 
 
 @dataclasses.dataclass
@@ -135,191 +265,236 @@ class Result:
     """Outcome of an optimisation (one scenario).
 
     Attributes:
-        design: the proposed design {"R": mm, "d_roller": mm}.
+        design: the proposed design ``{variable: value}`` in spec units (free and fixed).
         objective: its objective [–].
         constraints: name → {"value", "limit", "sense", "unit", "margin"}.
-        kkt_residual: KKT residual at the design; converged when ≤ tolerance.
-        converged: the KKT criterion was met within ``max_outer`` iterations.
-        quantities: irregularity, GAF RMS [N], outer diameter [mm], static
-            capacity [N·m], life [km], R/d of the design.
-        history: per outer iteration, the best feasible objective and the KKT
-            residual of the chosen start.
+        quantities: every quantity the spec uses, in the units of ``spec.QUANTITIES``.
+        kkt_residual: KKT residual at the design.
+        kkt_converged: the KKT criterion was met within ``max_outer`` iterations.
+        halfshaft_converged: every halfshaft point (and every other inner solve) at the
+            design returned ``RESULTS.successful``.
+        hertz_converged: the Hertz ellipse solve converged at the design.
+        converged: all three.
+        feasible: every margin ≥ 0 (up to the tolerance).
+        result: the worst inner result code at the design (a ``RESULTS`` name).
+        multipliers: the constraints' Lagrange multipliers.
+        history: per outer iteration, the objective and the KKT residual of the chosen start.
         starts: per start, its final design, objective, KKT residual and feasibility.
+        fidelity: the halfshaft fidelity the optimiser ran at.
+        sensitivities: filled by [`sensitivities`][tripodjax.optimize.sensitivities].
     """
 
     design: dict
     objective: float
     constraints: dict
-    kkt_residual: float
-    converged: bool
     quantities: dict
+    kkt_residual: float
+    kkt_converged: bool
+    halfshaft_converged: bool
+    hertz_converged: bool
+    converged: bool
+    feasible: bool
+    result: str
+    multipliers: dict
     history: dict
     starts: list
-    multipliers: dict
+    fidelity: str
+    x: np.ndarray = dataclasses.field(repr=False, default=None)
+    sensitivities: dict = None
 
 
-class _Progress:
-    def __init__(self, total, enabled):
-        self.total, self.enabled, self.start = total, enabled, time.perf_counter()
-
-    def update(self, i, kkt):
-        if self.enabled:
-            bar = "#" * int(30 * i / self.total)
-            sys.stderr.write(
-                f"\roptimize [{bar:<30}] outer {i}/{self.total}, KKT {kkt:.2e}, {time.perf_counter() - self.start:.1f} s"
-            )
-            sys.stderr.flush()
-
-    def close(self):
-        if self.enabled:
-            sys.stderr.write("\n")
-            sys.stderr.flush()
+def _stack(values_list):
+    return jax.tree_util.tree_map(lambda *a: np.stack([np.asarray(x) for x in a]), *values_list)
 
 
-def _run(spec, scenarios, progress):
-    """Optimise every scenario (dict of arrays with a leading axis) from every start."""
-    step = _compiled_step(spec)
-    lower, upper = (jnp.asarray(a) for a in bounds(spec))
-    n_scenarios = next(iter(scenarios.values())).shape[0]
-    z0 = start_points(spec)
-    n_starts, n_constraints = z0.shape[0], len(constraint_names(spec))
-    z = jnp.broadcast_to(z0, (n_scenarios,) + z0.shape)
-    lam = jnp.zeros((n_scenarios, n_starts, n_constraints))
-    rho = jnp.full((n_scenarios, n_starts), RHO_START)
-    tolerance = spec["solver"]["tolerance"]
-    history = {"objective": [], "kkt_residual": []}
-    bar = _Progress(spec["solver"]["max_outer"], progress)
-    done = np.zeros((n_scenarios, n_starts), bool)
-    f = c = kkt = None
-    for i in range(spec["solver"]["max_outer"]):
-        state = (z, lam, rho)
-        stepped = step(z, lam, rho, scenarios, lower, upper)
-        if f is None:
-            z, lam, rho, f, c, kkt = (np.asarray(a) for a in stepped)
-        else:
-            # A start that has met the KKT criterion stays where it is.
-            keep = lambda old, new: np.where(
-                done.reshape(done.shape + (1,) * (np.ndim(new) - 2)), old, new
-            )  # noqa: E731
-            z, lam, rho = (
-                keep(np.asarray(o), np.asarray(n)) for o, n in zip(state, stepped[:3], strict=False)
-            )
-            f, c, kkt = (
-                keep(o, np.asarray(n)) for o, n in zip((f, c, kkt), stepped[3:], strict=False)
-            )
-        done |= kkt <= tolerance
-        best = _choose(f, c, kkt, tolerance)
-        history["objective"].append(np.take_along_axis(f, best[:, None], 1)[:, 0])
-        history["kkt_residual"].append(np.take_along_axis(kkt, best[:, None], 1)[:, 0])
-        bar.update(i + 1, float(np.max(history["kkt_residual"][-1])))
-        # Stop once each scenario's chosen start has converged and no other start can still beat it.
-        best_f = np.take_along_axis(f, best[:, None], 1)
-        settled = done | (f >= best_f - tolerance)
-        if np.all(np.take_along_axis(done, best[:, None], 1)) and settled.all():
-            break
-    bar.close()
-    z, lam = jnp.asarray(z), jnp.asarray(lam)
-    x = np.asarray(jax.vmap(jax.vmap(lambda zz: _to_x(zz, lower, upper)))(z))
-    return x, np.asarray(lam), np.asarray(f), np.asarray(c), np.asarray(kkt), history
+def run(spec, scenarios, progress=None, *, starts=None):
+    """Optimise each scenario (a values pytree each) from every start; one Result per scenario.
+
+    ``starts`` overrides the spec's start points (z-space rows) for every scenario.
+    """
+    structure = spec.structure
+    z0 = start_points(structure) if starts is None else np.asarray(starts)
+    n_starts = z0.shape[0]
+    batch_values = _stack([v for v in scenarios for _ in range(n_starts)])
+    batch_z0 = np.concatenate([z0] * len(scenarios))
+    meter = resolve(progress).start(total=1, desc="optimize", unit="solve")
+    with jax.enable_x64(True):  # the design problem runs in float64; scoped to this call
+        out = call(solve_batch, structure, batch_values, jnp.asarray(batch_z0))
+        out = jax.tree_util.tree_map(np.asarray, out)
+    meter.update(1)
+    meter.close()
+    out = jax.tree_util.tree_map(lambda a: a.reshape((len(scenarios), n_starts) + a.shape[1:]), out)
+    return [
+        _result(structure, values, jax.tree_util.tree_map(lambda a, i=i: a[i], out))
+        for i, values in enumerate(scenarios)
+    ]
 
 
-def _choose(f, c, kkt, tolerance):
-    """Per scenario, the start to report: feasible and converged first, then the lowest objective."""
-    feasible = np.min(c, axis=-1) >= -tolerance
-    score = np.where(feasible, f, np.inf) + np.where(kkt <= tolerance, 0.0, 1e-9)
-    score = np.where(np.isfinite(score), score, f + 1e6 * np.maximum(0, -np.min(c, axis=-1)))
-    return np.argmin(score, axis=-1)
+def _choose(out, tolerance):
+    """The start to report: feasible and converged first, then the lowest objective."""
+    feasible = np.min(out["margins"], axis=-1) >= -tolerance
+    score = np.where(feasible, out["objective"], np.inf) + np.where(
+        out["kkt"] <= tolerance, 0.0, 1e-9
+    )
+    violation = np.maximum(0.0, -np.min(out["margins"], axis=-1))
+    score = np.where(np.isfinite(score), score, 1e6 + 1e6 * np.nan_to_num(violation, nan=1e9))
+    return int(np.argmin(score))
 
 
-def _results(spec, scenarios, outcome):
-    x, lam, f, c, kkt, history = outcome
-    best = _choose(f, c, kkt, spec["solver"]["tolerance"])
-    names = constraint_names(spec)
-    evaluate = compiled(spec)
-    out = []
-    for k, b in enumerate(best):
-        params = {name: value[k] for name, value in scenarios.items()}
-        objective, margins, q = evaluate(jnp.asarray(x[k, b]), params)
-        quantities = {name: float(v) for name, v in q.items()}
-        table = {}
-        for name, m in zip(names, np.asarray(margins), strict=False):
-            quantity, limit, sense, unit = limits(spec)[name]
-            table[name] = {
-                "value": quantities[quantity],
-                "limit": limit,
-                "sense": sense,
-                "unit": unit,
-                "margin": float(m),
+def _design_dict(structure, values, x):
+    design = {}
+    for name in REPORT_KEYS:
+        if name in structure.free:
+            design[name] = to_spec_units(name, x[structure.free.index(name)])
+    return design
+
+
+def fixed_design(spec_values):
+    """Every design variable at its spec value (spec units)."""
+    v = spec_values
+    return {
+        "R": float(v["design"]["R"]),
+        "d_roller": float(v["design"]["d_roller"]),
+        "l": float(v["layout"]["l"]),
+        "gamma0_deg": math.degrees(float(v["layout"]["gamma0"])),
+        "conformity": float(v["hertz"]["conformity"]),
+        "lam": float(v["friction"]["lam"]),
+        "mu_slp": float(v["friction"]["mu_slp"]),
+    }
+
+
+def _result(structure, values, out):
+    tolerance = float(values["solver"]["tolerance"])
+    best = _choose(out, tolerance)
+    names = constraint_names(structure)
+    table_limits = limits(structure, values)
+    q = {k: float(v[best]) for k, v in out["quantities"].items()}
+    constraints = {}
+    for name, margin in zip(names, out["margins"][best], strict=True):
+        quantity, limit, sense, unit = table_limits[name]
+        constraints[name] = {
+            "value": q[quantity],
+            "limit": limit,
+            "sense": sense,
+            "unit": unit,
+            "margin": float(margin),
+        }
+    design = fixed_design(values) | _design_dict(structure, values, out["x"][best])
+    halfshaft_code, hertz_code = (RESULTS(int(c)) for c in out["code"][best])
+    code = max(halfshaft_code, hertz_code)
+    kkt = float(out["kkt"][best])
+    kkt_ok = bool(kkt <= tolerance)
+    inner_ok = code == RESULTS.successful
+    feasible = bool(np.min(out["margins"][best]) >= -tolerance)
+    n_outer = int(out["outer_iterations"][best]) + 1
+    starts = []
+    for s in range(out["x"].shape[0]):
+        starts.append(
+            {
+                "design": _design_dict(structure, values, out["x"][s]),
+                "objective": float(out["objective"][s]),
+                "kkt_residual": float(out["kkt"][s]),
+                "feasible": bool(np.min(out["margins"][s]) >= -tolerance),
+                "result": RESULTS(int(np.max(out["code"][s]))).name,
             }
-        out.append(
-            Result(
-                design={name: float(v) for name, v in zip(VARIABLES, x[k, b], strict=False)},
-                objective=float(objective),
-                constraints=table,
-                kkt_residual=float(kkt[k, b]),
-                converged=bool(kkt[k, b] <= spec["solver"]["tolerance"]),
-                quantities=quantities,
-                history={key: [float(v[k]) for v in values] for key, values in history.items()},
-                starts=[
-                    {
-                        "design": {n: float(v) for n, v in zip(VARIABLES, x[k, s], strict=False)},
-                        "objective": float(f[k, s]),
-                        "kkt_residual": float(kkt[k, s]),
-                        "feasible": bool(np.min(c[k, s]) >= -spec["solver"]["tolerance"]),
-                    }
-                    for s in range(x.shape[1])
-                ],
-                multipliers={name: float(v) for name, v in zip(names, lam[k, b], strict=False)},
-            )
         )
-    return out
+    return Result(
+        design=design,
+        objective=float(out["objective"][best]),
+        constraints=constraints,
+        quantities=q,
+        kkt_residual=kkt,
+        kkt_converged=kkt_ok,
+        halfshaft_converged=halfshaft_code == RESULTS.successful,
+        hertz_converged=hertz_code == RESULTS.successful,
+        converged=bool(kkt_ok and inner_ok),
+        feasible=feasible,
+        result=code.name,
+        multipliers={n: float(v) for n, v in zip(names, out["lam"][best], strict=True)},
+        history={
+            "objective": [float(v) for v in out["history_objective"][best][:n_outer]],
+            "kkt_residual": [float(v) for v in out["history_kkt"][best][:n_outer]],
+        },
+        starts=starts,
+        fidelity=structure.fidelity,
+        x=np.asarray(out["x"][best]),
+    )
 
 
 def solve(spec, progress=None):
-    """Propose the joint size (R, d_roller) for a spec: the best of all starts. Returns a :class:`Result`.
+    """Propose the joint design for a spec: the best of all starts. Returns a [`Result`][tripodjax.optimize.Result].
 
-    ``progress``: a progress bar on standard error (default: when it is a terminal).
-    Deterministic for a given spec. Runs in float64 (scoped to the call).
+    ``progress``: ``None`` (a bar when standard error is a terminal), True/False, or a
+    ``tripodjax.progress.ProgressMeter``. Deterministic for a given spec. Runs in
+    float64 (scoped to the call). Compiled once per spec structure: solving a spec that
+    differs only in its numbers does not retrace.
+
+    Example:
+        >>> from tripodjax import optimize
+        >>> result = optimize.solve(optimize.load_spec(), progress=False)
+        >>> round(result.design["R"], 1), round(result.design["d_roller"], 1), result.converged
+        (21.3, 27.8, True)
     """
-    with jax.enable_x64(True):
-        scenarios = {k: v[None] for k, v in scenario(spec).items()}
-        outcome = _run(spec, scenarios, sys.stderr.isatty() if progress is None else progress)
-        return _results(spec, scenarios, outcome)[0]
+    return run(spec, [spec.values], progress)[0]
+
+
+def _with(values, section, **changes):
+    out = dict(values)
+    out[section] = dict(
+        values[section], **{k: np.asarray(v, np.float64) for k, v in changes.items()}
+    )
+    return out
 
 
 def solve_family(spec, *, gamma0_deg=None, l=None, progress=None):
-    """The proposed size for each member of a layout family, optimised together (vmap).
+    """The proposed design for each member of a layout family, optimised together (one batch).
 
     Give ``gamma0_deg`` (a sequence of layout angles [deg]) or ``l`` (shaft
-    lengths [mm]); the other layout value comes from the spec. Returns a list
-    of :class:`Result`, one per member.
+    lengths [mm]); the other layout value comes from the spec. The family's variable
+    must be fixed in the spec (not in ``[bounds]``). Returns a list of
+    [`Result`][tripodjax.optimize.Result], one per member.
     """
     if (gamma0_deg is None) == (l is None):
         raise ValueError("solve_family needs exactly one of gamma0_deg=[...] or l=[...]")
-    with jax.enable_x64(True):
-        base = scenario(spec)
-        values = (
-            np.radians(np.asarray(gamma0_deg, float))
-            if gamma0_deg is not None
-            else np.asarray(l, float)
+    name = "gamma0_deg" if gamma0_deg is not None else "l"
+    if name in spec.structure.free:
+        raise ValueError(
+            f"solve_family over {name}: {name} is a free variable of this spec; fix it (remove it from [bounds])"
         )
-        name = "gamma0" if gamma0_deg is not None else "l"
-        scenarios = {k: jnp.broadcast_to(v, values.shape) for k, v in base.items()}
-        scenarios[name] = jnp.asarray(values)
-        outcome = _run(spec, scenarios, sys.stderr.isatty() if progress is None else progress)
-        return _results(spec, scenarios, outcome)
+    members = np.asarray(gamma0_deg if gamma0_deg is not None else l, float).ravel()
+    if members.size == 0 or not np.all(np.isfinite(members)):
+        raise ValueError(
+            f"{name} = {members.tolist()!r} must be a non-empty sequence of finite numbers"
+        )
+    r_max = (
+        float(np.max(spec.values["bounds"]["R"]))
+        if "R" in spec.structure.free
+        else float(spec.values["design"]["R"])
+    )
+    if name == "gamma0_deg":
+        check_layout_domain(gamma0=members, names={"gamma0": "gamma0_deg"}, degrees=True)
+        scenarios = [_with(spec.values, "layout", gamma0=math.radians(v)) for v in members]
+    else:  # R/l ≤ 0.2 with the largest R the spec allows
+        check_layout_domain(R=r_max, l=members, names={"R": "the largest R of the spec", "l": "l"})
+        scenarios = [_with(spec.values, "layout", l=v) for v in members]
+    return run(spec, scenarios, progress)
 
 
 def pareto_front(spec, gaf_weights, progress=None):
-    """Designs minimising w_gaf · GAF + w_size · size for each GAF weight (irregularity weight from the spec).
+    """Designs minimising the objective with ``w_gaf_rms`` set to each weight (other weights from the spec).
 
-    Returns a list of :class:`Result`; their GAF RMS and outer diameter trace
-    the front of GAF against joint size.
+    Returns a list of [`Result`][tripodjax.optimize.Result]; their GAF RMS and outer
+    diameter trace the front of GAF against joint size. The spec's objective must have
+    a ``gaf_rms`` term.
     """
-    with jax.enable_x64(True):
-        weights = jnp.asarray(np.asarray(gaf_weights, float))
-        base = scenario(spec)
-        scenarios = {k: jnp.broadcast_to(v, weights.shape) for k, v in base.items()}
-        scenarios["w_gaf"] = weights
-        outcome = _run(spec, scenarios, sys.stderr.isatty() if progress is None else progress)
-        return _results(spec, scenarios, outcome)
+    if "gaf_rms" not in spec.structure.objective:
+        raise ValueError(
+            "pareto_front sweeps objective.w_gaf_rms; the spec's objective has no gaf_rms term"
+        )
+    weights = np.asarray(gaf_weights, float).ravel()
+    if weights.size == 0 or not np.all(np.isfinite(weights)):
+        raise ValueError(
+            f"gaf_weights = {weights.tolist()!r} must be a non-empty sequence of finite numbers"
+        )
+    scenarios = [_with(spec.values, "objective", w_gaf_rms=w) for w in weights]
+    return run(spec, scenarios, progress)

@@ -1,23 +1,36 @@
 """The design-problem specification: a TOML file, checked, with an embedded default.
 
 Every number carries its unit in its name or comment; angles are in degrees in
-the file (``*_deg``) and in radians inside. :func:`load_spec` returns a
-:class:`Spec`; any problem in the file raises :class:`SpecError` with one line
-naming the key, the value and what is allowed.
+the file (``*_deg``) and in radians inside. [`load_spec`][tripodjax.optimize.load_spec]
+returns a [`Spec`][tripodjax.optimize.Spec]: a frozen pytree whose *numbers* are
+leaves (traced by ``jit``: a new value never recompiles) and whose *structure*
+(which variables are free, which objective terms and constraints exist, list
+lengths, ``n_theta``, the number of starts, the fidelity, iteration counts) is
+static. Any problem in the file raises [`SpecError`][tripodjax.optimize.SpecError]
+with one line naming the key, the value and what is allowed.
 """
 
 import copy
 import dataclasses
 import math
+import tomllib
 
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10
-    import tomli as tomllib
+import jax
+import numpy as np
+
+from tripodjax._checks import MAX_GAMMA0, check_layout_domain
+from tripodjax.hertz import MIN_CONFORMITY
+
+MAX_GAMMA0_DEG = math.degrees(MAX_GAMMA0)
 
 DEFAULT_SPEC_TOML = """\
 # The company validation workbook's tripod (seed §4.3) on the seed's nominal halfshaft,
 # case N of Table 2.1 (§2.10). Units in the key names and comments.
+
+[design]
+# Values of the joint-size variables when they are not free (see [bounds]): the workbook's joint.
+R = 25.55              # track pitch-circle radius [mm]
+d_roller = 43.5        # roller diameter [mm]
 
 [layout]
 l = 500.0              # shaft length, spider centre to the fixed joint's pivot [mm]
@@ -55,34 +68,107 @@ share = [0.45, 0.20, 0.35]
 
 [friction]
 grease = "A"           # "A" (μ_slp 0.06), "B" (0.09) or "dry" (0.30) (seed §3.2.3)
+# mu_slp = 0.06        # pure-sliding coefficient; when absent it comes from the grease
 lam = 0.007            # rolling resistance λ
 gaf_model = "stroke"   # "stroke" (no GAF at γ = 0) or "printed" (the seed's 3.2.14)
 
 [objective]
-# Dimensionless: Σ w · quantity / reference. The references are the seed's case N with the
-# workbook's joint (R 25.55 mm, d 43.5 mm), so the objective is about 3 there.
+# Dimensionless: Σ w_<q> · <q> / <q>_ref over any quantity q (see the quantity table in the
+# docs). The references are the seed's case N with the workbook's joint (R 25.55 mm,
+# d 43.5 mm), so the objective is about 3 there.
 w_irregularity = 1.0
-w_gaf = 1.0
-w_size = 1.0
+w_gaf_rms = 1.0
+w_outer_diameter = 1.0
 irregularity_ref = 0.0283  # transmission irregularity of case N [–] (§2.11.3)
 gaf_rms_ref = 1250.0       # GAF RMS of case N at gaf_torque, grease A, stroke model [N]
-size_ref = 94.6            # outer-diameter proxy 2R + d of the workbook joint [mm]
+outer_diameter_ref = 94.6  # outer-diameter proxy 2R + d of the workbook joint [mm]
 
 [bounds]
+# A variable is free when it has an interval here, else fixed at its value in its own
+# section ([design], [layout], [hertz], [friction]). Free-able: R, d_roller [mm], l [mm],
+# gamma0_deg [deg], conformity, lam, mu_slp. "fixed" removes a default interval.
 R = [15.0, 40.0]         # track pitch-circle radius [mm]
 d_roller = [20.0, 50.0]  # roller diameter [mm]
 
 [constraints]
-R_over_d = [0.63, 0.83]  # experience range for tripods (workbook)
+# max_<q> / min_<q> for any quantity q; the Hertz static capacity (≥ shock_factor · M_max)
+# and the life (≥ required_km) are always required.
+min_R_over_d = 0.63      # experience range for tripods (workbook)
+max_R_over_d = 0.83
 # max_outer_diameter = 100.0  # optional envelope on 2R + d [mm]
+# max_eccentricity = 0.5      # spider-centre eccentricity [mm]
 
 [solver]
-n_theta = 120          # input angles per revolution for the kinematics (multiple of 6)
+# The cheapest setting whose design lies within 0.1 % of the newton / n_theta = 360 answer
+# (python -m tripodjax.optimize.bench); optimize-joint re-checks the design at full fidelity.
+fidelity = "analytic"  # halfshaft kinematics: "newton" (exact) or "analytic" (cheap)
+n_theta = 168          # input angles per revolution for the kinematics (multiple of 6)
 starts = 4             # multi-start points (a deterministic grid over the bounds)
 max_outer = 25         # augmented-Lagrangian outer iterations
 inner_steps = 30       # L-BFGS iterations per outer iteration
 tolerance = 1e-5       # KKT residual (projected gradient, feasibility, complementarity)
 """
+
+# Quantity → (unit, what). Every one can be an objective term or a constraint.
+QUANTITIES = {
+    "irregularity": ("–", "transmission irregularity (Ω2max − Ω2min)/Ω1 (§2.11.3)"),
+    "eccentricity": ("mm", "maximum spider-centre eccentricity over a revolution (2.5.9)"),
+    "gamma_ripple": ("deg", "peak-to-peak articulation angle over a revolution"),
+    "roller_stroke": (
+        "mm",
+        "peak-to-peak axial roller travel along its track (2.6.2, with the spider plunge)",
+    ),
+    "gaf_rms": ("N", "RMS of the generated axial force at loads.gaf_torque (§3.2)"),
+    "gaf_peak": ("N", "peak |GAF| at loads.gaf_torque"),
+    "gaf_third_order": ("N", "third-order GAF amplitude at loads.gaf_torque"),
+    "outer_diameter": ("mm", "outer-diameter proxy 2R + d"),
+    "static_capacity": ("N·m", "static torque capacity M_s at P_s (§4.2)"),
+    "M_d": ("N·m", "long-lasting dynamic capacity at P_d and γ0 (§4.2)"),
+    "M_sd": ("N·m", "short-lasting dynamic capacity at P_sd and γ0 (§4.2)"),
+    "life_km": ("km", "Palmgren–Miner life under the spectrum (4.2.1–4.2.3)"),
+    "R_over_d": ("–", "R / d"),
+}
+KINEMATIC_QUANTITIES = ("irregularity", "eccentricity", "gamma_ripple", "roller_stroke")
+GAF_QUANTITIES = ("gaf_rms", "gaf_peak", "gaf_third_order")
+
+# Design variable → (section, its value's key inside (γ0 in rad), unit, domain (low, high, low
+# open)). Its key in the file is the variable's own name (gamma0_deg in degrees); report keys add
+# the unit suffix.
+VARIABLES = {
+    "R": ("design", "R", "mm", (0.0, None, True)),
+    "d_roller": ("design", "d_roller", "mm", (0.0, None, True)),
+    "l": ("layout", "l", "mm", (0.0, None, True)),
+    "gamma0_deg": ("layout", "gamma0", "deg", (0.0, MAX_GAMMA0_DEG, False)),
+    "conformity": ("hertz", "conformity", "–", (MIN_CONFORMITY, None, False)),
+    "lam": ("friction", "lam", "–", (0.0, None, False)),
+    "mu_slp": ("friction", "mu_slp", "–", (0.0, None, False)),
+}
+REPORT_KEYS = {
+    "R": "R_mm",
+    "d_roller": "d_roller_mm",
+    "l": "l_mm",
+    "gamma0_deg": "gamma0_deg",
+    "conformity": "conformity",
+    "lam": "lam",
+    "mu_slp": "mu_slp",
+}
+GREASE_MU_SLP = {"A": 0.06, "B": 0.09, "dry": 0.30}  # seed §3.2.3
+FIDELITIES = ("newton", "analytic")
+GAF_MODELS = ("stroke", "printed")
+# Integer solver sizes: upper limits that keep a solve within memory and minutes.
+INTEGER_LIMITS = {
+    "n_theta": (6, 3600, "a multiple of 6"),
+    "starts": (1, 64, ""),
+    "max_outer": (1, 200, ""),
+    "inner_steps": (1, 200, ""),
+}
+MAX_LIST_LENGTH = 1000
+# Legacy keys that keep working (old name → new name).
+LEGACY_OBJECTIVE = {
+    "w_gaf": "w_gaf_rms",
+    "w_size": "w_outer_diameter",
+    "size_ref": "outer_diameter_ref",
+}
 
 
 class SpecError(ValueError):
@@ -90,75 +176,170 @@ class SpecError(ValueError):
 
 
 @dataclasses.dataclass(frozen=True)
+class Structure:
+    """The static part of a spec: what is free, which terms and constraints exist, the sizes.
+
+    Two specs with equal structures share one compiled optimiser.
+    """
+
+    free: tuple  # free design variables, in VARIABLES order
+    objective: tuple  # quantities with a weight
+    constraints: tuple  # (name, quantity, sense) with sense "max" or "min"
+    condition_names: tuple
+    n_rollers: int
+    gaf_model: str
+    fidelity: str
+    n_theta: int
+    starts: int
+    max_outer: int
+    inner_steps: int
+
+    @property
+    def needs(self):
+        """The quantities the objective and constraints use (computed; nothing else is)."""
+        used = set(self.objective) | {q for _, q, _ in self.constraints}
+        return used | {"static_capacity", "life_km"}
+
+
+def _flatten_spec(spec):
+    return (spec.values,), spec.structure
+
+
+def _unflatten_spec(structure, children):
+    return Spec(structure=structure, values=children[0], resolved=None)
+
+
+@dataclasses.dataclass(frozen=True)
 class Spec:
     """A checked design specification (see ``DEFAULT_SPEC_TOML`` for every key and unit).
 
-    ``values`` holds the resolved numbers (angles in rad under ``*_rad`` keys);
-    ``resolved`` is the full specification as a plain dict, for reports.
+    Attributes:
+        structure: the static [`Structure`][tripodjax.optimize.spec.Structure].
+        values: the numbers, ``{section: {key: float or 1-D array}}``, in internal
+            units (angles in rad under ``gamma0``, ``angle``; lengths in mm). A
+            pytree leaf each: ``jit`` traces them.
+        resolved: the full specification as a plain dict (the file merged over
+            the default), for reports; not part of the pytree.
     """
 
+    structure: Structure
     values: dict
-    resolved: dict
+    resolved: dict = dataclasses.field(default=None, compare=False)
 
     def __getitem__(self, section):
         return self.values[section]
 
+    def replace_values(self, **sections):
+        """A copy with some numbers changed, e.g. ``spec.replace_values(loads={"M_max": 1200.0})``.
 
-def _get(table, path, kind=float):
-    key = ".".join(path)
-    node = table
-    for part in path:
-        if not isinstance(node, dict) or part not in node:
-            raise SpecError(f"missing key {key}")
-        node = node[part]
-    if kind is float:
-        if isinstance(node, bool) or not isinstance(node, (int, float)) or not math.isfinite(node):
-            raise SpecError(f"{key} = {node!r} must be a finite number")
-        return float(node)
-    if kind is int:
-        if isinstance(node, bool) or not isinstance(node, int):
-            raise SpecError(f"{key} = {node!r} must be an integer")
-        return node
-    if kind is list:
-        if (
-            not isinstance(node, list)
-            or not node
-            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in node)
-        ):
-            raise SpecError(f"{key} = {node!r} must be a non-empty list of numbers")
-        return [float(v) for v in node]
-    if kind is str:
-        if not isinstance(node, str):
-            raise SpecError(f"{key} = {node!r} must be a string")
-        return node
-    raise TypeError(kind)
+        Checked like the file: the new numbers go through the same rules.
+        """
+        table = copy.deepcopy(self.resolved)
+        for section, changes in sections.items():
+            node = table.setdefault(section, {})
+            for key, value in changes.items():
+                node[key] = value
+        return _check(table)
 
 
-def _require(ok, key, value, allowed):
+jax.tree_util.register_pytree_node(Spec, _flatten_spec, _unflatten_spec)
+
+
+# --------------------------------------------------------------------------- checking
+
+
+def _is_number(value):
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _fmt(value):
+    return repr(value) if not isinstance(value, float) else f"{value!r}"
+
+
+def _number(table, section, key, low=None, high=None, *, low_open=False, unit=""):
+    """A finite number in [low, high] (low excluded when low_open)."""
+    where = f"{section}.{key}"
+    value = table[section][key]
+    if not _is_number(value):
+        raise SpecError(f"{where} = {value!r} must be a number")
+    return _in_range(where, float(value), low, high, low_open, unit)
+
+
+def _in_range(where, value, low, high, low_open, unit):
+    ok = math.isfinite(value)
+    ok = ok and (low is None or (value > low if low_open else value >= low))
+    ok = ok and (high is None or value <= high)
     if not ok:
-        raise SpecError(f"{key} = {value!r} is not allowed: {allowed}")
+        parts = []
+        if low is not None:
+            parts.append(f"{'>' if low_open else '≥'} {low:g}{unit}")
+        if high is not None:
+            parts.append(f"≤ {high:g}{unit}")
+        allowed = "a finite number " + " and ".join(parts) if parts else "a finite number"
+        raise SpecError(f"{where} = {_fmt(value)} is not allowed: {allowed}")
+    return value
 
 
-def _interval(table, path, positive=True):
-    key = ".".join(path)
-    values = _get(table, path, list)
-    _require(len(values) == 2, key, values, "a pair [lo, hi]")
-    lo, hi = values
-    _require(lo < hi and (lo > 0 or not positive), key, values, "[lo, hi] with 0 < lo < hi")
-    return lo, hi
+def _numbers(table, section, key, low=None, high=None, *, low_open=False, unit=""):
+    """A non-empty list of finite numbers, each in range; errors name the index."""
+    where = f"{section}.{key}"
+    node = table
+    for part in section.split("."):
+        node = node[part]
+    values = node[key]
+    if not isinstance(values, list) or not values:
+        raise SpecError(f"{where} = {values!r} must be a non-empty list of numbers")
+    if len(values) > MAX_LIST_LENGTH:
+        raise SpecError(f"{where} has {len(values)} entries; at most {MAX_LIST_LENGTH} allowed")
+    out = []
+    for i, value in enumerate(values):
+        if not _is_number(value):
+            raise SpecError(f"{where}[{i}] = {value!r} must be a number")
+        out.append(_in_range(f"{where}[{i}]", float(value), low, high, low_open, unit))
+    return out
+
+
+def _string(table, section, key, allowed):
+    where = f"{section}.{key}"
+    value = table[section][key]
+    if not isinstance(value, str) or value not in allowed:
+        raise SpecError(
+            f"{where} = {value!r} is not allowed; allowed: {', '.join(repr(a) for a in allowed)}"
+        )
+    return value
+
+
+def _integer(table, key):
+    low, high, extra = INTEGER_LIMITS[key]
+    value = table["solver"][key]
+    where = f"solver.{key}"
+    if isinstance(value, float) and value.is_integer() and abs(value) < 2**53:
+        value = int(value)
+    if not isinstance(value, int) or isinstance(value, bool):
+        raise SpecError(f"{where} = {value!r} must be an integer")
+    if not low <= value <= high or (key == "n_theta" and value % 6):
+        limits = f"an integer from {low} to {high}" + (f", {extra}" if extra else "")
+        raise SpecError(f"{where} = {value!r} is not allowed: {limits}")
+    return value
+
+
+def _shares(where, shares):
+    total = sum(shares)
+    if abs(total - 1.0) > 1e-6:
+        raise SpecError(
+            f"{where} = {shares!r} is not allowed: shares summing to 1 (sum {total:.6g})"
+        )
 
 
 def _merge(default, override, path=()):
-    """Deep-merge ``override`` into ``default``, rejecting keys the default does not have."""
+    """Deep-merge ``override`` into ``default``, rejecting keys the default does not know."""
     merged = copy.deepcopy(default)
     for key, value in override.items():
         where = ".".join(path + (key,))
-        if key not in default:
-            if path == ("constraints",) and key == "max_outer_diameter":
-                merged[key] = value
-                continue
+        section = path[0] if path else None
+        if key not in default and section not in ("objective", "constraints", "bounds", "friction"):
             raise SpecError(f"unknown key {where}; allowed here: {', '.join(sorted(default))}")
-        if isinstance(default[key], dict):
+        if isinstance(default.get(key), dict):
             if not isinstance(value, dict):
                 raise SpecError(f"{where} must be a table")
             merged[key] = _merge(default[key], value, path + (key,))
@@ -167,174 +348,221 @@ def _merge(default, override, path=()):
     return merged
 
 
+def _quantity_key(section, key, prefixes):
+    """The quantity named by an objective/constraint key, e.g. 'w_gaf_rms' → 'gaf_rms'."""
+    for prefix, suffix in prefixes:
+        if key.startswith(prefix) and key.endswith(suffix):
+            name = key[len(prefix) : len(key) - len(suffix)]
+            if name in QUANTITIES:
+                return prefix, name
+    forms = " / ".join(f"{p}<q>{s}" for p, s in prefixes)
+    raise SpecError(
+        f"unknown key {section}.{key}; allowed: {forms} with <q> one of {', '.join(QUANTITIES)}"
+    )
+
+
+def _legacy(given):
+    """Today's earlier keys, renamed in the file's own table before it meets the default."""
+    objective = given.get("objective")
+    if isinstance(objective, dict):
+        for old, new in LEGACY_OBJECTIVE.items():
+            if old in objective:
+                if new in objective:
+                    raise SpecError(
+                        f"objective.{old} and objective.{new} are the same key; give one"
+                    )
+                objective[new] = objective.pop(old)
+    constraints = given.get("constraints")
+    if isinstance(constraints, dict) and "R_over_d" in constraints:
+        pair = constraints.pop("R_over_d")
+        if not isinstance(pair, list) or len(pair) != 2:
+            raise SpecError(f"constraints.R_over_d = {pair!r} must be a pair [lo, hi]")
+        constraints["min_R_over_d"], constraints["max_R_over_d"] = pair
+    return given
+
+
+def _objective(table):
+    given = dict(table["objective"])
+    weights, refs = {}, {}
+    for key, value in given.items():
+        prefix, q = _quantity_key("objective", key, (("w_", ""), ("", "_ref")))
+        tab = {"objective": {key: value}}
+        if prefix == "w_":
+            weights[q] = _number(tab, "objective", key)
+        else:
+            refs[q] = _number(tab, "objective", key, 0.0, low_open=True)
+    terms = tuple(q for q in QUANTITIES if q in weights)
+    if not any(weights[q] != 0 for q in terms):
+        raise SpecError("objective has no non-zero weight w_<q>; give at least one")
+    for q in terms:
+        if q not in refs:
+            raise SpecError(f"objective.w_{q} needs objective.{q}_ref (> 0, in {QUANTITIES[q][0]})")
+    values = {f"w_{q}": weights[q] for q in terms} | {f"{q}_ref": refs[q] for q in terms}
+    return terms, values
+
+
+def _constraints(table):
+    given = dict(table["constraints"])
+    names, values = [], {}
+    for key, value in given.items():
+        prefix, q = _quantity_key("constraints", key, (("max_", ""), ("min_", "")))
+        values[key] = _number({"constraints": {key: value}}, "constraints", key, 0.0, low_open=True)
+        names.append((key, q, prefix[:-1]))
+    order = {q: i for i, q in enumerate(QUANTITIES)}
+    names.sort(key=lambda c: (order[c[1]], c[2]))
+    for key, q, sense in names:
+        if sense == "min" and f"max_{q}" in values and values[f"max_{q}"] < values[key]:
+            raise SpecError(
+                f"constraints.min_{q} = {values[key]:g} is above constraints.max_{q} = "
+                f"{values[f'max_{q}']:g}: no design can meet both"
+            )
+    return tuple(names), values
+
+
+def _bounds(table, fixed):
+    given = table["bounds"]
+    bounds = {}
+    for key, value in given.items():
+        if key not in VARIABLES:
+            raise SpecError(f"unknown key bounds.{key}; allowed: {', '.join(VARIABLES)}")
+        if value == "fixed":
+            continue
+        if not isinstance(value, list) or len(value) != 2:
+            raise SpecError(f'bounds.{key} = {value!r} must be a pair [lo, hi] or "fixed"')
+        _, _, unit, (low, high, low_open) = VARIABLES[key]
+        unit = "°" if unit == "deg" else ("" if unit == "–" else f" {unit}")
+        lo, hi = _numbers(
+            {"bounds": {key: value}}, "bounds", key, low, high, low_open=low_open, unit=unit
+        )
+        if not lo < hi:
+            raise SpecError(f"bounds.{key} = {value!r} is not allowed: [lo, hi] with lo < hi")
+        bounds[key] = (lo, hi)
+    # R/l ≤ 0.2 at every corner of the box (and at the fixed values).
+    r_hi = bounds["R"][1] if "R" in bounds else fixed["R"]
+    l_lo = bounds["l"][0] if "l" in bounds else fixed["l"]
+    names = {"R": "bounds.R[1]" if "R" in bounds else "design.R"}
+    names["l"] = "bounds.l[0]" if "l" in bounds else "layout.l"
+    try:  # the one layout-domain rule of the package
+        check_layout_domain(R=r_hi, l=l_lo, names=names)
+    except ValueError as error:
+        raise SpecError(f"{error} (at the corner of the bounds with the largest R/l)") from None
+    return bounds
+
+
+def _check(table):
+    """Check a merged table; returns the Spec."""
+    v = {}
+    fixed = {
+        "R": _number(table, "design", "R", 0.0, low_open=True, unit=" mm"),
+        "d_roller": _number(table, "design", "d_roller", 0.0, low_open=True, unit=" mm"),
+        "l": _number(table, "layout", "l", 0.0, low_open=True, unit=" mm"),
+        "gamma0_deg": _number(table, "layout", "gamma0_deg", 0.0, MAX_GAMMA0_DEG, unit="°"),
+        "conformity": _number(table, "hertz", "conformity", MIN_CONFORMITY),
+    }
+    v["design"] = {"R": fixed["R"], "d_roller": fixed["d_roller"]}
+    v["layout"] = {"l": fixed["l"], "gamma0": math.radians(fixed["gamma0_deg"])}
+    v["loads"] = {
+        "M_max": _number(table, "loads", "M_max", 0.0, low_open=True, unit=" N·m"),
+        "shock_factor": _number(table, "loads", "shock_factor", 0.0, low_open=True),
+        "gaf_torque": _number(table, "loads", "gaf_torque", 0.0, unit=" N·m"),
+    }
+    hertz = {
+        k: _number(table, "hertz", k, 0.0, low_open=True, unit=" MPa")
+        for k in ("P_s", "P_d", "P_sd")
+    }
+    hertz["C_s"] = _number(table, "hertz", "C_s", 0.0, low_open=True)
+    hertz["conformity"] = fixed["conformity"]
+    n_rollers = table["hertz"]["n_rollers"]
+    if not isinstance(n_rollers, int) or isinstance(n_rollers, bool) or not 1 <= n_rollers <= 12:
+        raise SpecError(f"hertz.n_rollers = {n_rollers!r} is not allowed: an integer from 1 to 12")
+    v["hertz"] = hertz
+    life = {"required_km": _number(table, "life", "required_km", 0.0, low_open=True, unit=" km")}
+    units = {"torque": " N·m", "speed": " rpm", "vehicle_speed": " km/h", "share": ""}
+    spectrum = {k: _numbers(table, "life", k, 0.0, unit=u) for k, u in units.items()}
+    lengths = {k: len(x) for k, x in spectrum.items()}
+    if len(set(lengths.values())) != 1:
+        raise SpecError(
+            f"life lists have lengths {lengths}; torque, speed, vehicle_speed and share must have one length"
+        )
+    _shares("life.share", spectrum["share"])
+    if not any(
+        s > 0 and n > 0 and t > 0
+        for s, n, t in zip(spectrum["share"], spectrum["speed"], spectrum["torque"], strict=True)
+    ):
+        raise SpecError(
+            "life spectrum has no case with torque, speed and share > 0: the life would be infinite"
+        )
+    conditions = table["life"]["conditions"]
+    angles = _numbers(table, "life.conditions", "angle_deg", 0.0, 89.999, unit="°")
+    shares = _numbers(table, "life.conditions", "share", 0.0)
+    _shares("life.conditions.share", shares)
+    names = conditions.get("names", [f"condition {i + 1}" for i in range(len(angles))])
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+        raise SpecError(f"life.conditions.names = {names!r} must be a list of strings")
+    if not len(angles) == len(shares) == len(names):
+        raise SpecError(
+            f"life.conditions lists have lengths angle_deg {len(angles)}, share {len(shares)}, "
+            f"names {len(names)}; they must have one length"
+        )
+    life.update({k: np.asarray(x) for k, x in spectrum.items()})
+    life["condition_angle"] = np.radians(np.asarray(angles))
+    life["condition_share"] = np.asarray(shares)
+    v["life"] = life
+    grease = _string(table, "friction", "grease", tuple(GREASE_MU_SLP))
+    for key in table["friction"]:
+        if key not in ("grease", "lam", "gaf_model", "mu_slp"):
+            raise SpecError(
+                f"unknown key friction.{key}; allowed here: gaf_model, grease, lam, mu_slp"
+            )
+    if "mu_slp" in table["friction"]:
+        mu_slp = _number(table, "friction", "mu_slp", 0.0)
+    else:
+        mu_slp = GREASE_MU_SLP[grease]
+    v["friction"] = {"lam": _number(table, "friction", "lam", 0.0), "mu_slp": mu_slp}
+    fixed.update(v["friction"])
+    gaf_model = _string(table, "friction", "gaf_model", GAF_MODELS)
+    terms, v["objective"] = _objective(table)
+    constraints, v["constraints"] = _constraints(table)
+    bounds = _bounds(table, fixed)
+    v["bounds"] = {
+        k: (math.radians(lo), math.radians(hi)) if k == "gamma0_deg" else (lo, hi)
+        for k, (lo, hi) in bounds.items()
+    }
+    v["bounds"] = {k: np.asarray(pair) for k, pair in v["bounds"].items()}
+    for key in table["solver"]:
+        if key not in (*INTEGER_LIMITS, "tolerance", "fidelity"):
+            raise SpecError(
+                f"unknown key solver.{key}; allowed here: {', '.join((*INTEGER_LIMITS, 'fidelity', 'tolerance'))}"
+            )
+    sizes = {k: _integer(table, k) for k in INTEGER_LIMITS}
+    v["solver"] = {"tolerance": _number(table, "solver", "tolerance", 1e-12, 1e-1)}
+    structure = Structure(
+        free=tuple(k for k in VARIABLES if k in bounds),
+        objective=terms,
+        constraints=constraints,
+        condition_names=tuple(names),
+        n_rollers=n_rollers,
+        gaf_model=gaf_model,
+        fidelity=_string(table, "solver", "fidelity", FIDELITIES),
+        **sizes,
+    )
+    if not structure.free:
+        raise SpecError(
+            f"bounds gives no free variable; give an interval for at least one of {', '.join(VARIABLES)}"
+        )
+    values = jax.tree_util.tree_map(lambda x: np.asarray(x, np.float64), v)
+    return Spec(structure=structure, values=values, resolved=table)
+
+
 def parse_spec(text, source="spec"):
     """Check a TOML text (merged over the default: a file need only hold what it changes)."""
+    if text.startswith("\ufeff"):  # a UTF-8 byte-order mark, as Windows editors write
+        text = text[1:]
     try:
         given = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
         raise SpecError(f"{source} is not valid TOML: {error}") from None
-    table = _merge(tomllib.loads(DEFAULT_SPEC_TOML), given)
-    v = {}
-    v["layout"] = {
-        "l": _get(table, ("layout", "l")),
-        "gamma0_rad": math.radians(_get(table, ("layout", "gamma0_deg"))),
-    }
-    _require(v["layout"]["l"] > 0, "layout.l", v["layout"]["l"], "l > 0 mm")
-    _require(
-        0 <= v["layout"]["gamma0_rad"] <= math.pi / 4,
-        "layout.gamma0_deg",
-        table["layout"]["gamma0_deg"],
-        "0 ≤ gamma0_deg ≤ 45",
-    )
-    loads = {k: _get(table, ("loads", k)) for k in ("M_max", "shock_factor", "gaf_torque")}
-    for k, value in loads.items():
-        _require(
-            value > 0 if k != "gaf_torque" else value >= 0,
-            f"loads.{k}",
-            value,
-            "> 0" if k != "gaf_torque" else "≥ 0 N·m",
-        )
-    v["loads"] = loads
-    hertz = {k: _get(table, ("hertz", k)) for k in ("P_s", "P_d", "P_sd", "C_s", "conformity")}
-    for k in ("P_s", "P_d", "P_sd", "C_s"):
-        _require(hertz[k] > 0, f"hertz.{k}", hertz[k], "> 0")
-    _require(
-        hertz["conformity"] > 1,
-        "hertz.conformity",
-        hertz["conformity"],
-        "conformity Ψ > 1 (workbook range 1.002–1.008)",
-    )
-    hertz["n_rollers"] = _get(table, ("hertz", "n_rollers"), int)
-    _require(hertz["n_rollers"] >= 1, "hertz.n_rollers", hertz["n_rollers"], "≥ 1")
-    v["hertz"] = hertz
-    life = {"required_km": _get(table, ("life", "required_km"))}
-    _require(life["required_km"] > 0, "life.required_km", life["required_km"], "> 0 km")
-    spectrum = {
-        k: _get(table, ("life", k), list) for k in ("torque", "speed", "vehicle_speed", "share")
-    }
-    lengths = {k: len(x) for k, x in spectrum.items()}
-    _require(
-        len(set(lengths.values())) == 1,
-        "life",
-        lengths,
-        "torque, speed, vehicle_speed and share of one length",
-    )
-    for k in ("torque", "speed", "vehicle_speed", "share"):
-        _require(all(x >= 0 for x in spectrum[k]), f"life.{k}", spectrum[k], "values ≥ 0")
-    _require(
-        abs(sum(spectrum["share"]) - 1) < 1e-6,
-        "life.share",
-        spectrum["share"],
-        "shares summing to 1",
-    )
-    life["spectrum"] = spectrum
-    angles = _get(table, ("life", "conditions", "angle_deg"), list)
-    shares = _get(table, ("life", "conditions", "share"), list)
-    names = table["life"]["conditions"].get(
-        "names", [f"condition {i + 1}" for i in range(len(angles))]
-    )
-    _require(
-        len(angles) == len(shares) == len(names),
-        "life.conditions",
-        {"angle_deg": len(angles), "share": len(shares), "names": len(names)},
-        "lists of one length",
-    )
-    _require(
-        all(0 <= a < 90 for a in angles), "life.conditions.angle_deg", angles, "0 ≤ angle < 90"
-    )
-    _require(
-        all(s >= 0 for s in shares) and abs(sum(shares) - 1) < 1e-6,
-        "life.conditions.share",
-        shares,
-        "shares ≥ 0 summing to 1",
-    )
-    life["conditions"] = {
-        "names": [str(n) for n in names],
-        "angle_rad": [math.radians(a) for a in angles],
-        "share": shares,
-    }
-    v["life"] = life
-    friction = {
-        "grease": _get(table, ("friction", "grease"), str),
-        "lam": _get(table, ("friction", "lam")),
-        "gaf_model": _get(table, ("friction", "gaf_model"), str),
-    }
-    _require(
-        friction["grease"] in ("A", "B", "dry"),
-        "friction.grease",
-        friction["grease"],
-        'one of "A", "B", "dry"',
-    )
-    _require(friction["lam"] >= 0, "friction.lam", friction["lam"], "λ ≥ 0")
-    _require(
-        friction["gaf_model"] in ("stroke", "printed"),
-        "friction.gaf_model",
-        friction["gaf_model"],
-        'one of "stroke", "printed"',
-    )
-    v["friction"] = friction
-    objective = {
-        k: _get(table, ("objective", k))
-        for k in (
-            "w_irregularity",
-            "w_gaf",
-            "w_size",
-            "irregularity_ref",
-            "gaf_rms_ref",
-            "size_ref",
-        )
-    }
-    for k, value in objective.items():
-        _require(
-            value >= 0 if k.startswith("w_") else value > 0,
-            f"objective.{k}",
-            value,
-            "≥ 0" if k.startswith("w_") else "> 0",
-        )
-    _require(
-        sum(objective[k] for k in ("w_irregularity", "w_gaf", "w_size")) > 0,
-        "objective",
-        "all weights 0",
-        "at least one weight > 0",
-    )
-    v["objective"] = objective
-    v["bounds"] = {
-        "R": _interval(table, ("bounds", "R")),
-        "d_roller": _interval(table, ("bounds", "d_roller")),
-    }
-    constraints = {"R_over_d": _interval(table, ("constraints", "R_over_d"))}
-    if "max_outer_diameter" in table["constraints"]:
-        constraints["max_outer_diameter"] = _get(table, ("constraints", "max_outer_diameter"))
-        _require(
-            constraints["max_outer_diameter"] > 0,
-            "constraints.max_outer_diameter",
-            constraints["max_outer_diameter"],
-            "> 0 mm",
-        )
-    v["constraints"] = constraints
-    r_lo, r_hi = v["bounds"]["R"]
-    _require(
-        r_hi / v["layout"]["l"] <= 0.2,
-        "bounds.R",
-        [r_lo, r_hi],
-        f"R/l ≤ 0.2 with layout.l = {v['layout']['l']:g} mm, so R ≤ {0.2 * v['layout']['l']:g}",
-    )
-    solver = {
-        k: _get(table, ("solver", k), int)
-        for k in ("n_theta", "starts", "max_outer", "inner_steps")
-    }
-    solver["tolerance"] = _get(table, ("solver", "tolerance"))
-    _require(
-        solver["n_theta"] >= 6 and solver["n_theta"] % 6 == 0,
-        "solver.n_theta",
-        solver["n_theta"],
-        "a positive multiple of 6",
-    )
-    for k in ("starts", "max_outer", "inner_steps"):
-        _require(solver[k] >= 1, f"solver.{k}", solver[k], "≥ 1")
-    _require(solver["tolerance"] > 0, "solver.tolerance", solver["tolerance"], "> 0")
-    v["solver"] = solver
-    return Spec(values=v, resolved=table)
+    return _check(_merge(tomllib.loads(DEFAULT_SPEC_TOML), _legacy(given)))
 
 
 def load_spec(path=None):
@@ -342,8 +570,19 @@ def load_spec(path=None):
     if path is None:
         return parse_spec(DEFAULT_SPEC_TOML, "the default spec")
     try:
-        with open(path, encoding="utf-8") as f:
-            text = f.read()
+        with open(path, "rb") as f:
+            data = f.read()
+    except IsADirectoryError:
+        raise SpecError(f"spec file {path} is a directory, not a TOML file") from None
     except OSError as error:
-        raise SpecError(f"cannot read spec file {path}: {error.strerror}") from None
+        raise SpecError(f"cannot read spec file {path}: {error.strerror or error}") from None
+    if b"\x00" in data:
+        raise SpecError(f"spec file {path} is a binary file, not a TOML text")
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as error:
+        raise SpecError(
+            f"spec file {path} is not UTF-8 text (byte {error.start}: {data[error.start : error.start + 1]!r}); "
+            "save it as UTF-8"
+        ) from None
     return parse_spec(text, str(path))

@@ -1,0 +1,177 @@
+"""The optimize-joint command: report, exit codes, bad input, interruption."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+import pytest
+
+from tripodjax import optimize
+
+SPEC = optimize.load_spec()
+
+
+def run_cli(*args, cwd=None, **popen):
+    command = [
+        sys.executable,
+        "-c",
+        "from tripodjax.optimize.cli import command; command()",
+        *args,
+    ]
+    # The command caches compiled code; keep the tests' cache out of the user's home.
+    env = dict(
+        os.environ, TRIPODJAX_CACHE_DIR=os.path.join(tempfile.gettempdir(), "tripodjax-test-cache")
+    )
+    return subprocess.run(command, capture_output=True, text=True, timeout=900, cwd=cwd, env=env)
+
+
+def strict_json(path):
+    def refuse(token):
+        raise ValueError(f"non-strict JSON token {token}")
+
+    return json.loads(path.read_text(), parse_constant=refuse)
+
+
+@pytest.fixture(scope="module")
+def cli_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("report")
+    return run_cli("--out", str(out), "--progress", "off"), out
+
+
+def test_cli_default_exits_0_and_writes_a_strict_report(cli_run):
+    result, out = cli_run
+    assert result.returncode == 0, result.stderr
+    assert {
+        "report.json",
+        "convergence.png",
+        "constraint_margins.png",
+        "pareto_front.png",
+        "catalogue.png",
+        "sensitivities.png",
+    } <= set(os.listdir(out))
+    report = strict_json(out / "report.json")
+    assert report["converged"] and report["kkt_residual"] <= report["tolerance"]
+    assert set(report["status"]) >= {"kkt_converged", "halfshaft_converged", "hertz_converged"}
+    assert report["design"]["R_mm"] == pytest.approx(21.30, rel=2e-3)
+    assert report["design"]["d_roller_mm"] == pytest.approx(27.78, rel=2e-3)
+    assert "catalogue:" in result.stdout and "ad hoc:" in result.stdout
+    choice = report["catalogue_choice"]
+    assert choice["feasible"] and choice == min(
+        (e for e in report["catalogue"] if e["feasible"]), key=lambda e: e["objective"]
+    )
+    assert (
+        "loads.M_max" in report["sensitivities"] and "layout.gamma0_deg" in report["sensitivities"]
+    )
+    # The cheap default (n_theta 120) is re-checked at full fidelity.
+    assert report["full_fidelity"]["n_theta"] == 360
+    assert min(report["full_fidelity"]["constraints"].values()) > -1e-4
+
+
+def test_cli_design_is_feasible_under_evaluate(cli_run):
+    _, out = cli_run
+    report = strict_json(out / "report.json")
+    design = {"R": report["design"]["R_mm"], "d_roller": report["design"]["d_roller_mm"]}
+    check = optimize.evaluate(SPEC, design)
+    assert min(check["constraints"].values()) >= 0.0
+    assert check["objective"] == pytest.approx(report["objective"], rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    "content, fragment",
+    [
+        ("[hertz]\nconformity = 0.9\n", "hertz.conformity"),
+        ("[bounds]\nd_roller = [20.0, inf]\n", "bounds.d_roller[1] = inf"),
+        ("[life]\ntorque = [1154.0, 700.0, inf, 150.0]\n", "life.torque[2] = inf"),
+        ("[solver]\nn_theta = 9999996\n", "solver.n_theta"),
+        ("[life.conditions]\nnames = 5\n", "life.conditions.names"),
+    ],
+)
+def test_cli_bad_spec_exits_2_with_one_line_and_no_report(tmp_path, content, fragment):
+    spec = tmp_path / "bad.toml"
+    spec.write_text(content)
+    out = tmp_path / "out"
+    result = run_cli(str(spec), "--out", str(out))
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and fragment in lines[0] and "Traceback" not in result.stderr
+    assert not (out / "report.json").exists()
+
+
+def test_cli_bad_files_and_out_exit_2_before_computing(tmp_path):
+    latin = tmp_path / "latin.toml"
+    latin.write_bytes("# réglé\n".encode("latin-1"))
+    regular = tmp_path / "file"
+    regular.write_text("x")
+    for args, fragment in (
+        ((str(tmp_path / "none.toml"), "--out", str(tmp_path / "o")), "cannot read spec file"),
+        ((str(latin), "--out", str(tmp_path / "o")), "not UTF-8"),
+        (("--out", str(regular / "sub")), "--out"),
+        (("--out", ""), "--out"),
+        (("--out",), "--out"),
+    ):
+        start = time.perf_counter()
+        result = run_cli(*args)
+        assert result.returncode == 2, (args, result.stderr)
+        assert len(result.stderr.strip().splitlines()) == 1 and fragment in result.stderr
+        assert (
+            time.perf_counter() - start < 60
+        )  # found before any optimisation (not a timing claim)
+
+
+def test_cli_infeasible_spec_says_so_with_a_strict_report(tmp_path):
+    spec = tmp_path / "small.toml"
+    spec.write_text("[constraints]\nmax_outer_diameter = 50.0\n")
+    out = tmp_path / "out"
+    result = run_cli(str(spec), "--out", str(out), "--progress", "off")
+    assert result.returncode == 1, result.stderr
+    assert "infeasible" in result.stderr and "Traceback" not in result.stderr
+    report = strict_json(out / "report.json")
+    assert "infeasible" in report["message"] and report["status"]["feasible"] is False
+
+
+def test_cli_ctrl_c_prints_one_line_and_exits_130(tmp_path):
+    out = tmp_path / "out"
+    env = dict(os.environ, TRIPODJAX_CACHE_DIR=str(tmp_path / "cache"))
+    command = [
+        sys.executable,
+        "-c",
+        "from tripodjax.optimize.cli import command; command()",
+        "--out",
+        str(out),
+        "--progress",
+        "off",
+    ]
+    process = subprocess.Popen(
+        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
+    )
+    time.sleep(4.0)  # inside the (cold) compilation
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=120)
+    assert process.returncode == 130, stderr
+    assert len(stderr.strip().splitlines()) == 1 and "interrupted" in stderr
+    assert not out.exists() or not any(
+        p.name.startswith(".") or p.name == "report.json" for p in out.iterdir()
+    )
+
+
+def test_cli_help():
+    result = run_cli("--help")
+    assert (
+        result.returncode == 0 and "--out DIR" in result.stdout and "Exit status" in result.stdout
+    )
+
+
+def test_cli_report_write_failure_exits_3_and_prints_the_design(tmp_path):
+    out = tmp_path / "out"
+    (out / "report.json").mkdir(parents=True)  # the report cannot replace a folder
+    (out / "report.json" / "keep").write_text("older")
+    result = run_cli("--out", str(out), "--progress", "off")
+    assert result.returncode == 3, result.stderr
+    assert "ad hoc:" in result.stderr and "cannot write the report" in result.stderr
+    assert "Traceback" not in result.stderr
+    assert (out / "report.json" / "keep").read_text() == "older"
+    assert not any(p.name.startswith(".") for p in out.iterdir())  # no temporary files left
