@@ -3,19 +3,19 @@
 Units: lengths in mm, angles in rad, torque in N·m, pressure in MPa (degrees
 only at the user-facing edge). Physics layers, after the seed thesis:
 
-- :mod:`tripodjax.layout`: :class:`Layout` (R, l, γ0) and the seed's Table 2.1 cases.
-- :mod:`tripodjax.joint`: single-joint relations (§2.3–2.6).
-- :mod:`tripodjax.halfshaft`: the halfshaft residual pair solved per θ (§2.9).
-- :mod:`tripodjax.kinematics`: metrics over a revolution (§2.10, §2.11.3).
-- :mod:`tripodjax.motion`: velocities and accelerations, exact and first order (§2.11).
-- :mod:`tripodjax.sweep`: batch sweeps over layouts, chunked and sharded.
-- :mod:`tripodjax.friction`: friction and the generated axial force, GAF (§3.2).
-- :mod:`tripodjax.hertz`: Hertz contact, torque capacities, minimum size, life (§4.2).
-- :mod:`tripodjax.catalogue`: GE and GI catalogue sizes (§1.1.2).
-- :mod:`tripodjax.solvers`: solver options (`Newton`, `Analytic`, `ClosedForm`).
-- :mod:`tripodjax.results`: the `RESULTS` codes carried from the Newton point to every result.
-- :mod:`tripodjax.progress`: pluggable progress meters (tqdm).
-- :mod:`tripodjax.optimize`: the design problem, its optimiser and ``optimize-joint``.
+- [`tripodjax.layout`][tripodjax.layout]: [`Layout`][tripodjax.layout.Layout] (R, l, γ0) and the seed's Table 2.1 cases.
+- [`tripodjax.joint`][tripodjax.joint]: single-joint relations (§2.3–2.6).
+- [`tripodjax.halfshaft`][tripodjax.halfshaft]: the halfshaft residual pair solved per θ (§2.9).
+- [`tripodjax.kinematics`][tripodjax.kinematics]: metrics over a revolution (§2.10, §2.11.3).
+- [`tripodjax.motion`][tripodjax.motion]: velocities and accelerations, exact and first order (§2.11).
+- [`tripodjax.sweep`][tripodjax.sweep]: batch sweeps over layouts, chunked and sharded.
+- [`tripodjax.friction`][tripodjax.friction]: friction and the generated axial force, GAF (§3.2).
+- [`tripodjax.hertz`][tripodjax.hertz]: Hertz contact, torque capacities, minimum size, life (§4.2).
+- [`tripodjax.catalogue`][tripodjax.catalogue]: GE and GI catalogue sizes (§1.1.2).
+- [`tripodjax.solvers`][tripodjax.solvers]: solver options (`Newton`, `Analytic`, `ClosedForm`).
+- [`tripodjax.results`][tripodjax.results]: the `RESULTS` codes carried from the Newton point to every result.
+- [`tripodjax.progress`][tripodjax.progress]: pluggable progress meters (tqdm).
+- [`tripodjax.optimize`][tripodjax.optimize]: the design problem, its optimiser and ``optimize-joint``.
 
 Nothing here changes JAX's global configuration: enable float64 yourself with
 ``jax.config.update("jax_enable_x64", True)`` when you need it.

@@ -2,15 +2,15 @@
 
 One rule per domain, written once and called by every layer with its own names:
 
-- :func:`check_real` — the type rule (real numbers or arrays of them; never a
+- `check_real` — the type rule (real numbers or arrays of them; never a
   ``str``, ``bool``, ``None``, complex number or object);
-- :func:`check_instance` — the type rule for object arguments (a Layout, a
+- `check_instance` — the type rule for object arguments (a Layout, a
   FrictionParams…);
-- :func:`check`, :func:`check_finite`, :func:`check_positive`, :func:`check_non_negative`,
-  :func:`check_shares`, :func:`check_integer` — value rules;
-- :func:`check_layout_domain` — the halfshaft layout domain (R, l, γ0), used by
-  :class:`~tripodjax.Layout`, :func:`~tripodjax.sweep` and the optimiser's spec;
-- :func:`check_choice` — every mode/choice argument.
+- `check`, `check_finite`, `check_positive`, `check_non_negative`,
+  `check_shares`, `check_integer` — value rules;
+- `check_layout_domain` — the halfshaft layout domain (R, l, γ0), used by
+  [`Layout`][tripodjax.layout.Layout], [`sweep`][tripodjax.sweep.sweep] and the optimiser's spec;
+- `check_choice` — every mode/choice argument.
 
 Every error is a ``ValueError`` (or ``TypeError`` for a wrong type) that names
 the argument, the offending value (with its index inside an array) and what is
@@ -33,7 +33,7 @@ TOLERANCE_ULPS = 4  # closed upper bounds of the layout domain admit a few ulps 
 
 
 def _at_most(array, top, *sources):
-    """``array ≤ top`` up to :data:`TOLERANCE_ULPS` ulps of ``top`` in the values' own dtype.
+    """``array ≤ top`` up to `TOLERANCE_ULPS` ulps of ``top`` in the values' own dtype.
 
     float32(π/4) and float32(R)/float32(l) at R/l = 0.2 round to just above
     the float64 bound; a value on the bound in its own precision is on it.
@@ -54,7 +54,7 @@ def concrete(value):
 
     Traced values (inside jit/vmap/grad) and the placeholders JAX puts in
     pytrees while it rebuilds them are not checked. No type errors: use
-    :func:`check_real` at a public boundary.
+    `check_real` at a public boundary.
     """
     if isinstance(value, jax.core.Tracer):
         return None
@@ -151,7 +151,7 @@ def check(name, value, ok, allowed):
     ``ok`` maps a NumPy array to a boolean array. The error names ``name`` (with
     the index of the first offending element for an array), the value and
     ``allowed``: ``"d[2] = -1.0 is outside the allowed range: d > 0"``. A wrong
-    type raises ``TypeError`` (:func:`check_real`). Returns the concrete array,
+    type raises ``TypeError`` (`check_real`). Returns the concrete array,
     or None when ``value`` is traced.
     """
     array = check_real(name, value)
@@ -266,12 +266,12 @@ def check_choice(name, value, allowed):
 
 
 def check_layout_domain(R=None, l=None, gamma0=None, *, names=None, prefix="", degrees=False):
-    """The one rule for the halfshaft layout domain (seed §2.9; see :class:`~tripodjax.Layout`).
+    """The one rule for the halfshaft layout domain (seed §2.9; see [`Layout`][tripodjax.layout.Layout]).
 
-    ``R > 0`` mm, ``l > 0`` mm, ``R/l ≤ 0.2`` (:data:`MAX_R_OVER_L`) and
-    ``0 ≤ γ0 ≤ π/4`` rad = 45° (:data:`MAX_GAMMA0`), every value finite and real
+    ``R > 0`` mm, ``l > 0`` mm, ``R/l ≤ 0.2`` (`MAX_R_OVER_L`) and
+    ``0 ≤ γ0 ≤ π/4`` rad = 45° (`MAX_GAMMA0`), every value finite and real
     (``str``, ``bool``, ``None``… raise ``TypeError``). The two upper bounds
-    hold up to :data:`TOLERANCE_ULPS` ulps of the value's own dtype, so the
+    hold up to `TOLERANCE_ULPS` ulps of the value's own dtype, so the
     float32 roundings of π/4 and of R/l = 0.2 are inside.
 
     Args:
@@ -353,11 +353,11 @@ def check_layout_domain(R=None, l=None, gamma0=None, *, names=None, prefix="", d
 # --------------------------------------------------------------------------- hertz domain
 
 MIN_CONFORMITY = 1.0005
-"""Smallest conformity Ψ = 2 R_g/d accepted (Ψ − 1 ≥ 5·10⁻⁴), see :func:`check_conformity`."""
+"""Smallest conformity Ψ = 2 R_g/d accepted (Ψ − 1 ≥ 5·10⁻⁴), see `check_conformity`."""
 
 
 def check_conformity(value, name="conformity"):
-    """The Hertz conformity rule: Ψ = 2 R_g/d finite and ≥ :data:`MIN_CONFORMITY` (1.0005).
+    """The Hertz conformity rule: Ψ = 2 R_g/d finite and ≥ `MIN_CONFORMITY` (1.0005).
 
     Ψ − 1 ≥ 5·10⁻⁴: a quarter of the lower end of the workbook's experience range
     (1.002–1.008). Below it the groove-to-roller radius clearance R_g − d/2 =
@@ -380,7 +380,7 @@ def check_conformity(value, name="conformity"):
 def checked_pytree_dataclass(cls):
     """A frozen dataclass registered as a pytree whose ``__post_init__`` checks run on user calls only.
 
-    Unlike :func:`tripodjax._pytree.pytree_dataclass`, JAX rebuilds instances
+    Unlike `tripodjax._pytree.pytree_dataclass`, JAX rebuilds instances
     (after ``jit``/``vmap``/``grad``, ``tree_map`` with ``None`` leaves,
     cotangents that are negative…) without calling ``__init__``, so the
     checks can be strict: a ``None``, ``str`` or ``bool`` field raises

@@ -1,8 +1,8 @@
 """``python -m tripodjax.bench``: throughput and accuracy of the solver levels, side by side.
 
 Measures, in one process on the current machine, each solver level
-(:mod:`tripodjax.solvers`: newton, analytic, closed_form) and dtype of
-:func:`tripodjax.sweep` against two peers solving the same equations on the
+([`tripodjax.solvers`][tripodjax.solvers]: newton, analytic, closed_form) and dtype of
+[`tripodjax.sweep`][tripodjax.sweep.sweep] against two peers solving the same equations on the
 same grid (one period of ``n_theta`` angles per layout):
 
 - a vectorised NumPy Newton of the scaled residual pair (same closed-form
@@ -65,7 +65,7 @@ def numpy_newton_metrics(R, l, gamma0, n_theta, rtol=NUMPY_RTOL, max_steps=24):
     """delta_pp, irregularity, gamma_pp by a vectorised NumPy Newton of the same scaled pair.
 
     The residual and closed-form Jacobian are the library's own
-    (:func:`~tripodjax.halfshaft.scaled_system` with NumPy as the array
+    ([`scaled_system`][tripodjax.halfshaft.scaled_system] with NumPy as the array
     module), with the same start, tolerance and implicit dψ/dθ: the peer
     differs only in running on NumPy.
     """

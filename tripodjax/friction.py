@@ -52,8 +52,8 @@ class FrictionParams:
         C_d1, C_d2: constants of μ_dyn (3.2.11) [–].
         R_s: slip-to-roll factor, S/R = R_s γ with γ in rad (3.2.5) [–].
         mu_slp: pure-sliding friction coefficient μ_slp (pin-on-disk) [–].
-        lam: rolling resistance λ [–] (see :func:`rolling_resistance_hysteresis`,
-            :func:`rolling_resistance_microslip`).
+        lam: rolling resistance λ [–] (see [`rolling_resistance_hysteresis`][tripodjax.friction.rolling_resistance_hysteresis],
+            [`rolling_resistance_microslip`][tripodjax.friction.rolling_resistance_microslip]).
 
     A pytree: every field is differentiable (``jax.grad`` returns a FrictionParams)
     and may be traced (e.g. ``params.replace(lam=x)`` inside ``jit``). Concrete
@@ -225,7 +225,7 @@ def gaf(theta, gamma, torque, R, params=GREASE_A, model="printed", width=DEFAULT
         gamma: articulation angle [rad] (constant: the single joint).
         torque: joint torque T_d [N·m], ≥ 0.
         R: track pitch-circle radius [mm], > 0.
-        params: :class:`FrictionParams`.
+        params: [`FrictionParams`][tripodjax.friction.FrictionParams].
         model: ``"printed"`` — the seed's 3.2.14–3.2.15 exactly (a ±λ square
             wave survives at γ = 0); ``"stroke"`` — each roller's sign is
             replaced by tanh(s_i / width), where s_i = tan γ · cos θ_i is the
@@ -276,7 +276,7 @@ class GAFResult:
         rms: root mean square over a revolution [N].
         peak: largest |GAF| [N].
         third_order: amplitude of the third rotating order [N].
-        result: worst :class:`~tripodjax.RESULTS` code of the kinematics over
+        result: worst [`RESULTS`][tripodjax.results.RESULTS] code of the kinematics over
             the revolution, or ``nonfinite`` where the force is not finite
             (e.g. a NaN torque or friction constant inside ``jit``: the RMS
             is then NaN, never 0).
@@ -291,9 +291,9 @@ class GAFResult:
 
 
 def gaf_from_revolution(layout, sol, rates, torque, params, model, width):
-    """GAF over a revolution from a halfshaft solution and its θ-rates (see :func:`gaf_halfshaft`).
+    """GAF over a revolution from a halfshaft solution and its θ-rates (see [`gaf_halfshaft`][tripodjax.friction.gaf_halfshaft]).
 
-    ``sol, rates`` come from :func:`~tripodjax.kinematics.revolution` with
+    ``sol, rates`` come from [`revolution`][tripodjax.kinematics.revolution] with
     ``with_rates=True``; no argument is checked here (it runs inside jit).
     """
     dtype = sol.theta.dtype
@@ -335,9 +335,9 @@ def gaf_halfshaft(
     stroke, the Lee model from mid-stroke. The stroke model's rate is the
     exact s_i = −(1/R) dZ_i/dθ of each roller's axial position (2.6.2, with
     the spider plunge c), by forward-mode AD through the solve; at first
-    order it is tan γ cos θ_L,i, as in :func:`gaf`. ``solver`` picks the
-    kinematics (a :mod:`tripodjax.solvers` object or shorthand, see
-    :func:`~tripodjax.kinematic_metrics`); ``result`` carries its status.
+    order it is tan γ cos θ_L,i, as in [`gaf`][tripodjax.friction.gaf]. ``solver`` picks the
+    kinematics (a [`tripodjax.solvers`][tripodjax.solvers] object or shorthand, see
+    [`kinematic_metrics`][tripodjax.kinematics.kinematic_metrics]); ``result`` carries its status.
 
     Differentiable w.r.t. the layout (R, l, γ0), the torque and every
     FrictionParams field, with derivatives of the solve from the implicit

@@ -14,18 +14,18 @@ The solver therefore works with the small unknowns
     Δ = θ − ψ   and   v = (γ − γ0)/γ0     (γ = γ0 (1 + v)),
 
 and with the pair divided by 2 l sin(γ0/2), every difference of nearly equal
-terms rewritten as a product of sines (see :func:`scaled_residual`). The
+terms rewritten as a product of sines (see [`scaled_residual`][tripodjax.halfshaft.scaled_residual]). The
 scaled Jacobian tends to diag(−1, 1) as γ0 → 0, so the solve stays regular at
 γ0 = 0, where the solution is ψ = θ, γ = 0 exactly.
 
-Two solver levels (:mod:`tripodjax.solvers`): :class:`~tripodjax.solvers.Newton`
+Two solver levels ([`tripodjax.solvers`][tripodjax.solvers]): [`Newton`][tripodjax.solvers.Newton]
 iterates to the dtype's tolerance, and its derivatives (w.r.t. θ, R, l, γ0,
 any order) come from the implicit function theorem, in a ``jax.custom_jvp``
 rule that solves with the closed-form Jacobian at the solution (the iterations
-are never differentiated); :class:`~tripodjax.solvers.Analytic` is the closed
+are never differentiated); [`Analytic`][tripodjax.solvers.Analytic] is the closed
 form plus a fixed number of Newton corrections in plain arithmetic,
 differentiated as written. Every point carries a result code
-(:class:`~tripodjax.RESULTS`) and an error estimate. The solve works
+([`RESULTS`][tripodjax.results.RESULTS]) and an error estimate. The solve works
 elementwise on arrays of any shape.
 """
 
@@ -82,12 +82,12 @@ def scaled_system(xp, consts, delta, v, small_angles=False):
     """Scaled residual (g1, g2) and closed-form Jacobian of the pair at (Δ, v).
 
     Every angle is built from two sine–cosine pairs, of Δ/2 and of
-    (γ − γ0)/2 = (γ0/2)·v, and the loop invariants of :func:`layout_constants`
+    (γ − γ0)/2 = (γ0/2)·v, and the loop invariants of [`layout_constants`][tripodjax.halfshaft.layout_constants]
     (angle-addition and triple-angle identities), so an iteration costs four
     transcendental functions. Returns ``(g1, g2), ((j11, j12), (j21, j22))``.
 
     With ``small_angles`` the sines and cosines of the small angles Δ/2 and
-    (γ − γ0)/2 are Taylor polynomials (:func:`small_angle_sincos`), and an
+    (γ − γ0)/2 are Taylor polynomials ([`small_angle_sincos`][tripodjax.halfshaft.small_angle_sincos]), and an
     iteration is pure arithmetic (for |Δ|, |γ − γ0| ≲ 0.1 only).
     """
     half0, s0, c0, k, H = (consts[n] for n in ("half0", "s0", "c0", "k", "H"))
@@ -161,7 +161,7 @@ def scaled_residual(R, l, gamma0, theta, x):
 
 
 def scaled_jacobian(R, l, gamma0, theta, x):
-    """Closed-form Jacobian ∂(g1, g2)/∂(Δ, v) of :func:`scaled_residual`, (..., 2, 2)."""
+    """Closed-form Jacobian ∂(g1, g2)/∂(Δ, v) of [`scaled_residual`][tripodjax.halfshaft.scaled_residual], (..., 2, 2)."""
     consts = layout_constants(jnp, R, l, gamma0, theta)
     _, ((j11, j12), (j21, j22)) = scaled_system(jnp, consts, x[..., 0], x[..., 1])
     return jnp.stack([jnp.stack([j11, j12], -1), jnp.stack([j21, j22], -1)], -2)
@@ -175,7 +175,7 @@ def default_rtol(dtype):
 def small_angle_sincos(x):
     """(sin x, cos x) by Taylor polynomials to x⁹ and x⁸: exact to roundoff for |x| ≤ 0.05.
 
-    Used by the corrections of :class:`~tripodjax.solvers.Analytic`, where
+    Used by the corrections of [`Analytic`][tripodjax.solvers.Analytic], where
     the arguments are Δ/2 and (γ − γ0)/2 (|Δ| ≤ 0.06 over the domain).
     """
     x2 = x * x
@@ -185,7 +185,7 @@ def small_angle_sincos(x):
 
 
 def analytic_unknowns(xp, consts, theta):
-    """(Δ, v) of the closed form of :func:`analytic_halfshaft`; θ enters through sin 3θ, cos 3θ."""
+    """(Δ, v) of the closed form of [`analytic_halfshaft`][tripodjax.halfshaft.analytic_halfshaft]; θ enters through sin 3θ, cos 3θ."""
     k, s0, c0, H, half0 = (consts[n] for n in ("k", "s0", "c0", "H", "half0"))
     sin3, cos3 = xp.sin(3.0 * theta), xp.cos(3.0 * theta)
     delta1 = -first_order_amplitude(consts) * sin3
@@ -333,7 +333,7 @@ class HalfshaftSolution:
             first-order amplitude e(γ0)/|h| of Δ [–]: roundoff (≲ 1e-13 in
             float64) for Newton, the truncation error for Analytic. Not
             differentiated.
-        result: :class:`~tripodjax.RESULTS` code per point (int32).
+        result: [`RESULTS`][tripodjax.results.RESULTS] code per point (int32).
         converged: ``result == RESULTS.successful``.
         iterations: Newton steps taken (the fixed corrections for Analytic).
     """
@@ -356,19 +356,19 @@ def solve_halfshaft(
     """Solve ψ(θ) and γ(θ) of a halfshaft for every input angle in ``theta``.
 
     Args:
-        layout: a :class:`~tripodjax.Layout` (scalar fields, or fields that
+        layout: a [`Layout`][tripodjax.layout.Layout] (scalar fields, or fields that
             broadcast against ``theta``).
         theta: input angles θ [rad], any shape.
-        solver: :class:`~tripodjax.solvers.Newton` (default, ``"newton"``),
-            :class:`~tripodjax.solvers.Analytic` (``"analytic"``) or
-            ``"closed_form"``; see :mod:`tripodjax.solvers`.
-        throw: raise :class:`~tripodjax.solvers.SolverError` naming the first
+        solver: [`Newton`][tripodjax.solvers.Newton] (default, ``"newton"``),
+            [`Analytic`][tripodjax.solvers.Analytic] (``"analytic"``) or
+            ``"closed_form"``; see [`tripodjax.solvers`][tripodjax.solvers].
+        throw: raise [`SolverError`][tripodjax.solvers.SolverError] naming the first
             point (index and θ) whose result is not successful. Needs concrete
             values: works outside ``jax.jit`` only (inside, read ``result``).
         rtol, max_steps: older spelling of ``solver=Newton(rtol, max_steps)``.
 
     Returns:
-        :class:`HalfshaftSolution` with arrays of the broadcast shape.
+        [`HalfshaftSolution`][tripodjax.halfshaft.HalfshaftSolution] with arrays of the broadcast shape.
 
     Jit-compiled (the solver is static). Newton starts from the closed form
     and takes at most 5 steps in float64 (3 in float32) over the domain.
@@ -411,12 +411,12 @@ def _solve(layout, theta, solver):
 
 
 def analytic_halfshaft(layout, theta, corrections=1):
-    """The :class:`~tripodjax.solvers.Analytic` level (``corrections=0``: the closed form alone).
+    """The [`Analytic`][tripodjax.solvers.Analytic] level (``corrections=0``: the closed form alone).
 
-    The closed form of :func:`analytic_unknowns` — the seed's first order
+    The closed form of [`analytic_unknowns`][tripodjax.halfshaft.analytic_unknowns] — the seed's first order
     (§2.11) plus the γ ripple — then ``corrections`` Newton steps whose sines
     of small angles are Taylor polynomials. See
-    :class:`~tripodjax.solvers.Analytic` for the measured accuracy.
+    [`Analytic`][tripodjax.solvers.Analytic] for the measured accuracy.
     """
     return solve_halfshaft(layout, theta, Analytic(corrections=corrections))
 

@@ -19,11 +19,11 @@ angles rad.
 
 Inputs are checked at the Python boundary (concrete values only): a
 ``TypeError`` or ``ValueError`` names the argument, the value and what is
-allowed. The conformity must be at least :data:`MIN_CONFORMITY` = 1.0005
-(see :func:`tripodjax._checks.check_conformity`), ``n_rollers`` an integer ≥ 1.
+allowed. The conformity must be at least `MIN_CONFORMITY` = 1.0005
+(see `tripodjax._checks.check_conformity`), ``n_rollers`` an integer ≥ 1.
 Inside ``jit`` nothing can raise: a non-finite or out-of-range input gives NaN,
 and the results that depend on the Hertz ellipse-ratio solve carry a per-point
-``result`` code (:class:`tripodjax.results.RESULTS`).
+``result`` code ([`tripodjax.results.RESULTS`][tripodjax.results.RESULTS]).
 """
 
 import math
@@ -209,7 +209,7 @@ class HertzCoefficients:
         mu, nu: coefficients of the semi-axes a = μ·k, b = ν·k [–].
         mu_nu: the product μν used by the seed's conformity coefficient [–].
         result: per-point code of the κ solve (int32,
-            :class:`~tripodjax.results.RESULTS`): ``successful``,
+            [`RESULTS`][tripodjax.results.RESULTS]): ``successful``,
             ``max_steps_reached`` or ``nonfinite`` (cos τ outside [0, 1) or
             non-finite inside ``jit``; the coefficients are then NaN).
     """
@@ -252,7 +252,7 @@ def hertz_coefficients(cos_tau):
 
 
 def mu_nu(cos_tau):
-    """The Hertz product μν for the curvature function cos τ in [0, 1) (see :func:`hertz_coefficients`)."""
+    """The Hertz product μν for the curvature function cos τ in [0, 1) (see [`hertz_coefficients`][tripodjax.hertz.hertz_coefficients])."""
     return hertz_coefficients(cos_tau).mu_nu
 
 
@@ -279,9 +279,9 @@ class ContactGeometry:
 def contact_geometry(conformity):
     """Contact geometry of a roller in a straight track of conformity Ψ = 2 R_g / d.
 
-    Ψ ≥ :data:`MIN_CONFORMITY` = 1.0005 (Ψ − 1 ≥ 5·10⁻⁴; the workbook's
+    Ψ ≥ `MIN_CONFORMITY` = 1.0005 (Ψ − 1 ≥ 5·10⁻⁴; the workbook's
     experience range is 1.002–1.008; see
-    :func:`tripodjax._checks.check_conformity` for why). A concrete Ψ below it
+    `tripodjax._checks.check_conformity` for why). A concrete Ψ below it
     or non-finite raises ``ValueError``; inside ``jit`` a non-finite Ψ or
     Ψ ≤ 1 gives NaN.
     """
@@ -321,7 +321,7 @@ class Contact:
         a: semi-axis of the contact ellipse across the track, in the
             conformal groove direction [mm].
         b: semi-axis along the track, in the rolling direction [mm].
-        result: per-point code (int32, :class:`~tripodjax.results.RESULTS`):
+        result: per-point code (int32, [`RESULTS`][tripodjax.results.RESULTS]):
             the κ solve's, or ``nonfinite`` where an input or the answer is
             not finite (the fields are then NaN).
     """
@@ -429,7 +429,7 @@ class Capacities:
         M_sd: short-lasting dynamic capacity at P_sd and the working angle [N·m].
         C_p: conformity coefficient [MPa·N^(-1/3)·mm^(2/3)].
         mu_nu: Hertz product μν [–].
-        result: per-point code (int32, :class:`~tripodjax.results.RESULTS`):
+        result: per-point code (int32, [`RESULTS`][tripodjax.results.RESULTS]):
             the κ solve's, or ``nonfinite`` where an input or a capacity is
             not finite (that capacity is then NaN).
     """
@@ -461,7 +461,7 @@ def capacities(
     Args:
         d: roller diameter [mm]; R: track pitch-circle radius [mm]; both > 0.
         conformity: Ψ = 2 R_g / d ≥ 1.0005 (experience range 1.002–1.008;
-            :data:`MIN_CONFORMITY`).
+            `MIN_CONFORMITY`).
         P_s, P_d, P_sd: allowed static, long-lasting and short-lasting
             dynamic contact pressures [MPa], > 0.
         C_s: safety coefficient on the pressure [–], > 0.
@@ -520,7 +520,7 @@ def min_roller_diameter(
     (pressure to the power 2 where Hertz gives 3); kept for reproduction only.
 
     Args: M_max, R_over_d, P_s, C_s > 0; conformity Ψ ≥ 1.0005; n_rollers an
-    integer ≥ 1; angles as :func:`capacities`; all finite (NaN inside ``jit``
+    integer ≥ 1; angles as [`capacities`][tripodjax.hertz.capacities]; all finite (NaN inside ``jit``
     for a non-finite input).
 
     Returns:
@@ -655,7 +655,7 @@ class Life:
         km: combined life in kilometres L_s = L_h · V_m (4.2.3) [km].
         hours_per_condition: life L_h,j if the joint ran in condition j only [h].
         M_d_per_condition: long-lasting capacity M_d(γ_j) [N·m].
-        result: code (int32, :class:`~tripodjax.results.RESULTS`): the κ
+        result: code (int32, [`RESULTS`][tripodjax.results.RESULTS]): the κ
             solve's, or ``nonfinite`` where an input or the life is NaN (an
             infinite life, from a spectrum that does no damage, is successful).
     """
@@ -686,9 +686,9 @@ def joint_life(
     life L_h,j (4.2.2, 4.2.1); the conditions combine by Miner's rule on their
     shares, 1/L_h = Σ w_j / L_h,j, and L_s = L_h · V_m with V_m = Σ a_i V_i.
 
-    Args: d, R > 0 [mm]; ``spectrum`` a :class:`LoadSpectrum`; ``conditions``
-    a :class:`WorkingConditions`; conformity Ψ ≥ 1.0005; P_d > 0 [MPa];
-    C_s > 0; n_rollers an integer ≥ 1; angles as :func:`capacities`. Inside
+    Args: d, R > 0 [mm]; ``spectrum`` a [`LoadSpectrum`][tripodjax.hertz.LoadSpectrum]; ``conditions``
+    a [`WorkingConditions`][tripodjax.hertz.WorkingConditions]; conformity Ψ ≥ 1.0005; P_d > 0 [MPa];
+    C_s > 0; n_rollers an integer ≥ 1; angles as [`capacities`][tripodjax.hertz.capacities]. Inside
     ``jit`` a non-finite input gives a NaN life and ``result = nonfinite``.
     Differentiable w.r.t. d, R, the conformity and P_d.
     """

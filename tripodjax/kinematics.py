@@ -64,9 +64,9 @@ class KinematicMetrics:
         converged: every angle's solve succeeded (``result == successful``).
         max_residual: largest scaled residual over the revolution [–].
         error_estimate: largest per-angle error estimate over the revolution
-            [–] (see :class:`~tripodjax.HalfshaftSolution`): the relative
+            [–] (see [`HalfshaftSolution`][tripodjax.halfshaft.HalfshaftSolution]): the relative
             error of Δ and γ − γ0, roundoff for Newton.
-        result: worst :class:`~tripodjax.RESULTS` code over the revolution (int32).
+        result: worst [`RESULTS`][tripodjax.results.RESULTS] code over the revolution (int32).
     """
 
     delta_pp: jax.Array
@@ -115,15 +115,15 @@ def revolution(layout, n_theta, solver="newton", *, with_rates):
     """The halfshaft solution over one period of an n_theta grid, and its θ-derivative.
 
     Args:
-        layout: a :class:`~tripodjax.Layout` with scalar fields.
-        n_theta: angles per revolution, a multiple of 6 (see :func:`period_grid`).
-        solver: a solver object or shorthand (:mod:`tripodjax.solvers`).
+        layout: a [`Layout`][tripodjax.layout.Layout] with scalar fields.
+        n_theta: angles per revolution, a multiple of 6 (see [`period_grid`][tripodjax.kinematics.period_grid]).
+        solver: a solver object or shorthand ([`tripodjax.solvers`][tripodjax.solvers]).
         with_rates: also return the θ-derivatives.
 
-    Returns ``(solution, rates)``: two :class:`~tripodjax.HalfshaftSolution`,
+    Returns ``(solution, rates)``: two [`HalfshaftSolution`][tripodjax.halfshaft.HalfshaftSolution],
     the second holding d(field)/dθ (forward-mode AD through the solve, so
     implicit for Newton), or None when ``with_rates`` is False. Form metrics
-    from them with :func:`metrics_from`; ``solution.result`` carries the status.
+    from them with [`metrics_from`][tripodjax.kinematics.metrics_from]; ``solution.result`` carries the status.
     """
     solver = solvers.resolve(solver)
     dtype = jnp.result_type(layout.R, layout.l, layout.gamma0, 0.0)
@@ -230,11 +230,11 @@ METRICS = tuple(_METRICS)
 
 
 def metrics_from(layout, sol, rates, names):
-    """The named kinematic metrics (KinematicMetrics field names) from a :func:`revolution`.
+    """The named kinematic metrics (KinematicMetrics field names) from a [`revolution`][tripodjax.kinematics.revolution].
 
     Only the metrics named are built (``rates`` may be None unless
     ``"irregularity"`` is asked for). Returns a dict name → scalar array;
-    differentiable like :func:`kinematic_metrics`. E.g. for an optimiser::
+    differentiable like [`kinematic_metrics`][tripodjax.kinematics.kinematic_metrics]. E.g. for an optimiser::
 
         sol, rates = revolution(layout, 120, "newton", with_rates=True)
         m = metrics_from(layout, sol, rates, ("irregularity", "ecc_max", "gamma_pp",
@@ -250,23 +250,23 @@ def kinematic_metrics(
     """Kinematic metrics of a halfshaft layout over one revolution.
 
     Args:
-        layout: a :class:`~tripodjax.Layout` with scalar fields (vmap over
-            layouts for batches, or use :func:`tripodjax.sweep`).
+        layout: a [`Layout`][tripodjax.layout.Layout] with scalar fields (vmap over
+            layouts for batches, or use [`tripodjax.sweep`][tripodjax.sweep.sweep]).
         n_theta: input angles per revolution, a multiple of 6; only the
-            first period (n_theta/3 angles) is solved, see :func:`period_grid`.
-        solver: :class:`~tripodjax.solvers.Newton` (``"newton"``, default) —
+            first period (n_theta/3 angles) is solved, see [`period_grid`][tripodjax.kinematics.period_grid].
+        solver: [`Newton`][tripodjax.solvers.Newton] (``"newton"``, default) —
             the implicit solve converged to the dtype's tolerance;
-            :class:`~tripodjax.solvers.Analytic` (``"analytic"``) — the closed
+            [`Analytic`][tripodjax.solvers.Analytic] (``"analytic"``) — the closed
             form plus one Newton correction in plain arithmetic, over the
             whole domain within 0.12 % (irregularity), 0.03 % (delta_pp),
             0.13 % (ecc_max), 0.4 % (gamma_pp), an order of magnitude cheaper;
-            ``"closed_form"`` — the closed form alone (see :mod:`tripodjax.solvers`).
-        throw: raise :class:`~tripodjax.solvers.SolverError` naming the first
+            ``"closed_form"`` — the closed form alone (see [`tripodjax.solvers`][tripodjax.solvers]).
+        throw: raise [`SolverError`][tripodjax.solvers.SolverError] naming the first
             angle θ whose solve did not succeed. Outside ``jax.jit`` only.
         fidelity: older spelling of ``solver`` (a shorthand string).
 
     Returns:
-        :class:`KinematicMetrics`. Jit-compiled (``n_theta`` and ``solver``
+        [`KinematicMetrics`][tripodjax.kinematics.KinematicMetrics]. Jit-compiled (``n_theta`` and ``solver``
         are static). Every float field is differentiable (``jax.grad``,
         ``jax.jacfwd``) w.r.t. every Layout field, and at γ0 = 0 ``jax.grad``
         gives the one-sided derivative (irregularity 1.5 R/l, delta_pp

@@ -44,13 +44,13 @@ class Layout:
     fields (Python or NumPy numbers) are checked against the documented
     domain ``R > 0`` mm, ``l > 0`` mm, ``R/l ≤ 0.2``, ``0 ≤ gamma0 ≤ π/4``
     (45°), all finite — the one rule of
-    :func:`tripodjax._checks.check_layout_domain` — and raise ``ValueError``
+    `tripodjax._checks.check_layout_domain` — and raise ``ValueError``
     naming the field, the value and the allowed range. Array fields (a batch
-    for :func:`~tripodjax.sweep`, which checks them element by element) and
+    for [`sweep`][tripodjax.sweep.sweep], which checks them element by element) and
     traced fields are not range-checked here; inside ``jit`` a NaN field
     propagates as NaN (and a non-successful result code of the solve).
 
-    Use :meth:`from_degrees` to give ``gamma0`` in degrees.
+    Use [`from_degrees`][tripodjax.layout.Layout.from_degrees] to give ``gamma0`` in degrees.
     """
 
     R: float
@@ -77,11 +77,11 @@ class Layout:
 
 
 def check_layout(layout, name="layout", allowed="a Layout, e.g. Layout(25.0, 500.0, 0.35)"):
-    """``TypeError`` naming ``name`` unless ``layout`` is a :class:`Layout` (its fields were checked).
+    """``TypeError`` naming ``name`` unless ``layout`` is a [`Layout`][tripodjax.layout.Layout] (its fields were checked).
 
     The one type rule of every function that takes a layout
-    (:func:`~tripodjax.solve_halfshaft`, :func:`~tripodjax.kinematic_metrics`,
-    :func:`~tripodjax.friction.gaf_halfshaft`, :func:`~tripodjax.sweep`).
+    ([`solve_halfshaft`][tripodjax.halfshaft.solve_halfshaft], [`kinematic_metrics`][tripodjax.kinematics.kinematic_metrics],
+    [`gaf_halfshaft`][tripodjax.friction.gaf_halfshaft], [`sweep`][tripodjax.sweep.sweep]).
     Returns ``layout``.
     """
     return check_instance(name, layout, Layout, allowed)

@@ -80,12 +80,12 @@ def halfshaft_motion(layout, theta, theta_dot, theta_ddot=0.0):
     """Exact motion of the spider and roller centres at input angles ``theta``.
 
     Args:
-        layout: :class:`~tripodjax.Layout` with scalar fields.
+        layout: [`Layout`][tripodjax.layout.Layout] with scalar fields.
         theta: input angle θ [rad]; theta_dot θ̇ [rad/s]; theta_ddot θ̈
             [rad/s²]. Broadcast together.
 
     Returns:
-        :class:`JointMotion` in mm, mm/s, mm/s².
+        [`JointMotion`][tripodjax.motion.JointMotion] in mm, mm/s, mm/s².
     """
     (R, l, gamma0), (theta, theta_dot, theta_ddot) = _prepare(layout, theta, theta_dot, theta_ddot)
 
@@ -101,7 +101,7 @@ def halfshaft_motion(layout, theta, theta_dot, theta_ddot=0.0):
 def first_order_motion(layout, theta, theta_dot, theta_ddot=0.0):
     """The seed's first-order motion (2.11.1, 2.11.2): ψ ≈ θ, γ ≈ γ0 constant.
 
-    Same arguments and units as :func:`halfshaft_motion`. With γ constant the
+    Same arguments and units as [`halfshaft_motion`][tripodjax.motion.halfshaft_motion]. With γ constant the
     spider offset c is constant (taken as 0), so the axial components are
     Z* − c and Z_i − c.
     """

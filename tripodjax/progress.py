@@ -1,9 +1,9 @@
 """Progress meters for long work (sweeps, the optimiser), pluggable in the manner of Diffrax.
 
 Every long-running function takes ``progress=``: ``None`` (the default: a bar
-when standard error is a terminal), ``True``/``False``, or a :class:`ProgressMeter`
-instance. :class:`TqdmProgressMeter` uses ``tqdm.auto``, so a notebook gets a
-notebook bar; :class:`NoProgressMeter` prints nothing.
+when standard error is a terminal), ``True``/``False``, or a [`ProgressMeter`][tripodjax.progress.ProgressMeter]
+instance. [`TqdmProgressMeter`][tripodjax.progress.TqdmProgressMeter] uses ``tqdm.auto``, so a notebook gets a
+notebook bar; [`NoProgressMeter`][tripodjax.progress.NoProgressMeter] prints nothing.
 """
 
 import sys

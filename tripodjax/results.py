@@ -2,7 +2,7 @@
 
 A code is stored per point as an ``int32`` array (``HalfshaftSolution.result``,
 ``KinematicMetrics.result``, ``GAFResult.result``, the Hertz κ solve, sweeps and
-the optimiser). Combining codes keeps the worst one: :func:`worst`.
+the optimiser). Combining codes keeps the worst one: [`worst`][tripodjax.results.worst].
 """
 
 import enum

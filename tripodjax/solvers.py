@@ -1,20 +1,20 @@
 """Solver options for the halfshaft pair, as objects (in the manner of Optimistix's ``Newton``).
 
-Every layer that solves the halfshaft (:func:`~tripodjax.solve_halfshaft`,
-:func:`~tripodjax.kinematics.revolution`, :func:`~tripodjax.kinematic_metrics`,
-the GAF functions of :mod:`tripodjax.friction`, :func:`~tripodjax.sweep` and the
+Every layer that solves the halfshaft ([`solve_halfshaft`][tripodjax.halfshaft.solve_halfshaft],
+[`revolution`][tripodjax.kinematics.revolution], [`kinematic_metrics`][tripodjax.kinematics.kinematic_metrics],
+the GAF functions of [`tripodjax.friction`][tripodjax.friction], [`sweep`][tripodjax.sweep.sweep] and the
 bench) takes one ``solver=`` argument: an instance of
 
-- :class:`Newton` — the implicit-differentiated Newton solve, converged to a
+- [`Newton`][tripodjax.solvers.Newton] — the implicit-differentiated Newton solve, converged to a
   relative step tolerance (the reference level);
-- :class:`Analytic` — the closed form plus a fixed number of Newton corrections
+- [`Analytic`][tripodjax.solvers.Analytic] — the closed form plus a fixed number of Newton corrections
   in plain arithmetic: cheap, and accurate over the whole domain (see its
   docstring for the measured errors);
-- :class:`ClosedForm` — the closed form alone (the seed's first order plus the
+- [`ClosedForm`][tripodjax.solvers.ClosedForm] — the closed form alone (the seed's first order plus the
   γ ripple), kept for reproduction and as the cheapest level;
 
 or one of the strings ``"newton"``, ``"analytic"``, ``"closed_form"`` as
-shorthands for their defaults, resolved by :func:`resolve` (the one place).
+shorthands for their defaults, resolved by [`resolve`][tripodjax.solvers.resolve] (the one place).
 
 The objects are frozen and hashable, so they are static arguments of
 ``jax.jit``; they validate their settings once, at construction.
@@ -95,7 +95,7 @@ class Analytic:
 
     Attributes:
         corrections: Newton corrections after the closed form, an integer 0 … 4
-            (0 is :class:`ClosedForm`).
+            (0 is [`ClosedForm`][tripodjax.solvers.ClosedForm]).
         validity: largest accepted error estimate [–], in (0, 1); default 1e-2.
     """
 
@@ -109,7 +109,7 @@ class Analytic:
 
 
 def ClosedForm(validity=1.0 - 1e-9):  # noqa: N802 — a solver "class" like the others
-    """The closed form alone: :class:`Analytic` with no correction.
+    """The closed form alone: [`Analytic`][tripodjax.solvers.Analytic] with no correction.
 
     The seed's first order (§2.11) plus the γ ripple; over the whole domain it
     is off by up to 4.2 % (irregularity), 0.6 % (delta_pp), 7.3 % (ecc_max)
@@ -146,11 +146,11 @@ _UNSET = object()
 
 
 def resolve_legacy(solver, fidelity=_UNSET, rtol=_UNSET, max_steps=_UNSET):
-    """:func:`resolve`, also honouring the older keywords ``fidelity=``, ``rtol=``, ``max_steps=``.
+    """[`resolve`][tripodjax.solvers.resolve], also honouring the older keywords ``fidelity=``, ``rtol=``, ``max_steps=``.
 
     ``fidelity`` is a shorthand string (as ``solver``; when given, even as
     None, it is checked like any choice and replaces ``solver``);
-    ``rtol``/``max_steps`` build a :class:`Newton` (validated by it;
+    ``rtol``/``max_steps`` build a [`Newton`][tripodjax.solvers.Newton] (validated by it;
     ``rtol=None`` is its default tolerance). Kept for compatibility: prefer
     one ``solver=`` object.
     """

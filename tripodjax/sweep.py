@@ -4,7 +4,7 @@ One compiled function evaluates a chunk of layouts; chunks keep memory bounded
 for millions of layouts, and each chunk is split across every visible device
 with JAX's own sharding (a 1-D mesh over the layouts). Multi-host: start every
 process with ``jax.distributed.initialize()`` (see the JAX documentation),
-then call :func:`sweep` with the same ``layouts`` on every host; ``jax.devices()``
+then call [`sweep`][tripodjax.sweep.sweep] with the same ``layouts`` on every host; ``jax.devices()``
 then spans all hosts and each chunk is split across all of them.
 """
 
@@ -56,10 +56,10 @@ DEFAULT_CHUNK_POINTS_ACCELERATOR = 2**22
 
 
 class SweepResult(dict):
-    """The outputs of :func:`sweep`: a dict name → NumPy array of length N, plus a status summary.
+    """The outputs of [`sweep`][tripodjax.sweep.sweep]: a dict name → NumPy array of length N, plus a status summary.
 
     Attributes:
-        result_counts: dict :class:`~tripodjax.RESULTS` name → number of
+        result_counts: dict [`RESULTS`][tripodjax.results.RESULTS] name → number of
             layouts with that (worst) code, when the status was computed (an
             output ``"result"`` or ``"converged"``, or ``throw=True``); else None.
     """
@@ -68,7 +68,7 @@ class SweepResult(dict):
 
 
 def count_results(codes):
-    """Layouts per :class:`~tripodjax.RESULTS` code: dict name → count (every code listed)."""
+    """Layouts per [`RESULTS`][tripodjax.results.RESULTS] code: dict name → count (every code listed)."""
     codes = np.asarray(codes)
     return {code.name: int(np.count_nonzero(codes == code)) for code in RESULTS}
 
@@ -153,16 +153,16 @@ def sweep(
     """Metrics of many layouts at once.
 
     Args:
-        layouts: a :class:`~tripodjax.Layout` whose fields are 1-D arrays of
+        layouts: a [`Layout`][tripodjax.layout.Layout] whose fields are 1-D arrays of
             one length N (checked element by element against the layout
             domain; the error names the field and the index).
         n_theta: angles per revolution (a multiple of 6).
-        solver: a :mod:`tripodjax.solvers` object or shorthand —
+        solver: a [`tripodjax.solvers`][tripodjax.solvers] object or shorthand —
             ``"newton"`` (default), ``"analytic"``, ``"closed_form"`` (see
-            :func:`~tripodjax.kinematic_metrics`).
+            [`kinematic_metrics`][tripodjax.kinematics.kinematic_metrics]).
         outputs: a sequence of names to compute — any
-            :class:`~tripodjax.KinematicMetrics` field (including
-            ``"result"``, the worst :class:`~tripodjax.RESULTS` code per
+            [`KinematicMetrics`][tripodjax.kinematics.KinematicMetrics] field (including
+            ``"result"``, the worst [`RESULTS`][tripodjax.results.RESULTS] code per
             layout, and ``"error_estimate"``, the per-layout error estimate of
             the solver level), and ``"gaf_rms"``, ``"gaf_peak"``,
             ``"gaf_third_order"`` [N] (these need ``torque``; their status
@@ -173,19 +173,19 @@ def sweep(
             to a multiple of the device count; bounds the memory. Default: 2^18
             solved angles per chunk on a CPU (cache-sized: 2184 layouts at
             n_theta = 360), 2^22 on an accelerator.
-        torque: GAF torque [N·m], finite and ≥ 0 (as :func:`~tripodjax.friction.gaf_halfshaft`).
+        torque: GAF torque [N·m], finite and ≥ 0 (as [`gaf_halfshaft`][tripodjax.friction.gaf_halfshaft]).
         friction_params, gaf_model, gaf_width: GAF inputs, see
-            :func:`~tripodjax.friction.gaf_halfshaft`.
+            [`gaf_halfshaft`][tripodjax.friction.gaf_halfshaft].
         devices: devices to split each chunk over (default: all visible).
         progress: ``None`` (a bar when standard error is a terminal and there
             is more than one chunk), ``True``/``False`` or a
-            :class:`~tripodjax.progress.ProgressMeter`.
-        throw: raise :class:`~tripodjax.solvers.SolverError` naming the first
+            [`ProgressMeter`][tripodjax.progress.ProgressMeter].
+        throw: raise [`SolverError`][tripodjax.solvers.SolverError] naming the first
             layout (index) and angle θ whose solve did not succeed.
         fidelity, rtol, max_steps: older spellings of ``solver``.
 
     Returns:
-        :class:`SweepResult`: a dict name → NumPy array of length N, with
+        [`SweepResult`][tripodjax.sweep.SweepResult]: a dict name → NumPy array of length N, with
         ``result_counts`` (layouts per result code) when ``"result"`` or
         ``"converged"`` is among the outputs or ``throw`` is set. The working
         dtype is that of the layout arrays.
