@@ -260,7 +260,7 @@ def evaluate(spec, design):
         docstring), the bounds of the free variables included. Jit-compiled once per
         spec structure; runs in float64 (inside ``jax.enable_x64``, scoped to the call).
 
-    Example:
+    Examples:
         >>> from tripodjax import optimize
         >>> spec = optimize.load_spec()
         >>> out = optimize.evaluate(spec, {"R": 21.3, "d_roller": 27.8})

@@ -429,7 +429,7 @@ def solve(spec, progress=None):
     float64 (scoped to the call). Compiled once per spec structure: solving a spec that
     differs only in its numbers does not retrace.
 
-    Example:
+    Examples:
         >>> from tripodjax import optimize
         >>> result = optimize.solve(optimize.load_spec(), progress=False)
         >>> round(result.design["R"], 1), round(result.design["d_roller"], 1), result.converged

@@ -278,3 +278,13 @@ def test_family_and_pareto_front_in_one_batch():
     assert gaf[0] >= gaf[-1] - 1e-6
     with pytest.raises(ValueError, match="gamma0_deg"):
         optimize.solve_family(SPEC, gamma0_deg=[60.0])
+
+
+def test_docstring_examples_run():
+    import doctest
+
+    from tripodjax.optimize import problem
+
+    for module in (problem, solver):
+        failures, tried = doctest.testmod(module, optionflags=doctest.ELLIPSIS)
+        assert tried > 0 and failures == 0, module.__name__
