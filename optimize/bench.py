@@ -57,7 +57,7 @@ def _seconds(command, env=None, repeats=1):
 def command_latency(repeats=2):
     """Cold and warm ``optimize-joint`` against the import floor [s] and their ratios."""
     floor = _seconds([sys.executable, "-c", "import jax, matplotlib.pyplot"], repeats=3)
-    cli = [sys.executable, "-m", "tripodjax.optimize.cli"]
+    cli = [sys.executable, "-P", "-m", "tripodjax.optimize.cli"]  # -P: the installed package
     with tempfile.TemporaryDirectory() as tmp:
         env = dict(os.environ, TRIPODJAX_CACHE_DIR=os.path.join(tmp, "cache"))
         out = os.path.join(tmp, "out")

@@ -11,9 +11,11 @@ Exit status (also in ``--help``):
 """
 
 import argparse
+import contextvars
 import os
 import sys
 import tempfile
+from concurrent.futures import ThreadPoolExecutor
 
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT, EXIT_WRITE_FAILED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 PARETO_FACTORS = (0.25, 0.5, 1.0, 2.0, 4.0)
@@ -133,17 +135,26 @@ def _main(argv):
     scenarios = [spec.values] + [
         _with(spec.values, "objective", w_gaf_rms=w) for w in pareto_weights
     ]
-    with export_cache(os.path.join(_cache_dir(), "exports")):
-        results = run(spec, scenarios, progress)
-        result, pareto = results[0], list(zip(pareto_weights, results[1:], strict=True))
-        if result.feasible:
-            result.sensitivities = sensitivities(spec, result)
-        catalogue, choice = evaluate_catalogue(spec)
-        full = None
-        if spec.structure.fidelity != "newton" or spec.structure.n_theta != 360:
-            reference = spec.replace_values(solver={"fidelity": "newton", "n_theta": 360})
-            checked = evaluate(reference, {k: result.design[k] for k in spec.structure.free})
-            full = {"solver": "newton", "n_theta": 360, **checked}
+    # Independent work runs in a second thread: XLA compiles outside the GIL, so on a cold
+    # cache the catalogue's and the sensitivities' programs compile beside the optimiser's.
+    pool = ThreadPoolExecutor(max_workers=1)
+    try:
+        with export_cache(os.path.join(_cache_dir(), "exports")):
+            catalogue_job = pool.submit(contextvars.copy_context().run, evaluate_catalogue, spec)
+            results = run(spec, scenarios, progress)
+            result, pareto = results[0], list(zip(pareto_weights, results[1:], strict=True))
+            full = None
+            if spec.structure.fidelity != "newton" or spec.structure.n_theta != 360:
+                reference = spec.replace_values(solver={"fidelity": "newton", "n_theta": 360})
+                design = {k: result.design[k] for k in spec.structure.free}
+                full_job = pool.submit(contextvars.copy_context().run, evaluate, reference, design)
+            if result.feasible:
+                result.sensitivities = sensitivities(spec, result)
+            catalogue, choice = catalogue_job.result()
+            if spec.structure.fidelity != "newton" or spec.structure.n_theta != 360:
+                full = {"solver": "newton", "n_theta": 360, **full_job.result()}
+    finally:
+        pool.shutdown(wait=False, cancel_futures=True)  # Ctrl-C does not wait for a compile
     figures = {
         "convergence.png": report.figure_convergence(result),
         "constraint_margins.png": report.figure_margins(result),

@@ -24,6 +24,7 @@ variables, (x − lo)/(hi − lo) and (hi − x)/(hi − lo).
 import functools
 import math
 import numbers
+from collections.abc import Mapping
 
 import jax
 import jax.numpy as jnp
@@ -39,6 +40,7 @@ from tripodjax.optimize.spec import (
     KINEMATIC_QUANTITIES,
     QUANTITIES,
     VARIABLES,
+    Spec,
 )
 from tripodjax.results import RESULTS, worst
 
@@ -245,7 +247,7 @@ def check_design(structure, values, design):
     return out
 
 
-def evaluate(spec, design):
+def evaluate(spec: Spec, design: Mapping[str, float]) -> dict:
     """Objective, constraint margins and quantities of one design.
 
     Args:
@@ -295,7 +297,7 @@ def evaluate(spec, design):
     }
 
 
-def evaluate_catalogue(spec):
+def evaluate_catalogue(spec: Spec) -> tuple[list[dict], dict | None]:
     """Every GE and GI catalogue size (seed §1.1.2) under the spec, and the best feasible one.
 
     R and d come from the catalogue, every other variable stays at its fixed spec

@@ -26,7 +26,8 @@ import numpy as np
 
 from tripodjax.optimize._compiled import call
 from tripodjax.optimize.problem import bounds, constraint_names
-from tripodjax.optimize.solver import BOUND_TOLERANCE, _evaluation
+from tripodjax.optimize.solver import BOUND_TOLERANCE, Result, _evaluation
+from tripodjax.optimize.spec import Spec
 
 ACTIVE_MULTIPLIER = 1e-6  # λ above this: the constraint is active
 SWITCH_MULTIPLIER = 1e-4  # active with λ below this: about to leave the active set
@@ -136,7 +137,7 @@ def _spec_key(section, key):
     return f"{section}.{key}", 1.0
 
 
-def sensitivities(spec, result):
+def sensitivities(spec: Spec, result: Result) -> dict:
     """Derivatives of the optimal objective and of each free variable w.r.t. every fixed number.
 
     Args:

@@ -27,6 +27,7 @@ that differs only in its numbers reuses the compiled code.
 import dataclasses
 import functools
 import math
+from collections.abc import Sequence
 
 import jax
 import jax.numpy as jnp
@@ -42,8 +43,8 @@ from tripodjax.optimize.problem import (
     objective_and_margins,
     to_spec_units,
 )
-from tripodjax.optimize.spec import REPORT_KEYS
-from tripodjax.progress import resolve
+from tripodjax.optimize.spec import REPORT_KEYS, Spec
+from tripodjax.progress import ProgressMeter, resolve
 from tripodjax.results import RESULTS
 
 RHO_START = 10.0
@@ -307,7 +308,13 @@ def _stack(values_list):
     return jax.tree_util.tree_map(lambda *a: np.stack([np.asarray(x) for x in a]), *values_list)
 
 
-def run(spec, scenarios, progress=None, *, starts=None):
+def run(
+    spec: Spec,
+    scenarios: Sequence[dict],
+    progress: bool | ProgressMeter | None = None,
+    *,
+    starts: np.ndarray | None = None,
+) -> list[Result]:
     """Optimise each scenario (a values pytree each) from every start; one Result per scenario.
 
     ``starts`` overrides the spec's start points (z-space rows) for every scenario.
@@ -421,7 +428,7 @@ def _result(structure, values, out):
     )
 
 
-def solve(spec, progress=None):
+def solve(spec: Spec, progress: bool | ProgressMeter | None = None) -> Result:
     """Propose the joint design for a spec: the best of all starts. Returns a [`Result`][tripodjax.optimize.Result].
 
     ``progress``: ``None`` (a bar when standard error is a terminal), True/False, or a
@@ -446,7 +453,13 @@ def _with(values, section, **changes):
     return out
 
 
-def solve_family(spec, *, gamma0_deg=None, l=None, progress=None):
+def solve_family(
+    spec: Spec,
+    *,
+    gamma0_deg: Sequence[float] | None = None,
+    l: Sequence[float] | None = None,
+    progress: bool | ProgressMeter | None = None,
+) -> list[Result]:
     """The proposed design for each member of a layout family, optimised together (one batch).
 
     Give ``gamma0_deg`` (a sequence of layout angles [deg]) or ``l`` (shaft
@@ -480,7 +493,9 @@ def solve_family(spec, *, gamma0_deg=None, l=None, progress=None):
     return run(spec, scenarios, progress)
 
 
-def pareto_front(spec, gaf_weights, progress=None):
+def pareto_front(
+    spec: Spec, gaf_weights: Sequence[float], progress: bool | ProgressMeter | None = None
+) -> list[Result]:
     """Designs minimising the objective with ``w_gaf_rms`` set to each weight (other weights from the spec).
 
     Returns a list of [`Result`][tripodjax.optimize.Result]; their GAF RMS and outer

@@ -13,6 +13,7 @@ with one line naming the key, the value and what is allowed.
 import copy
 import dataclasses
 import math
+import os
 import tomllib
 
 import jax
@@ -229,7 +230,7 @@ class Spec:
     def __getitem__(self, section):
         return self.values[section]
 
-    def replace_values(self, **sections):
+    def replace_values(self, **sections: dict) -> "Spec":
         """A copy with some numbers changed, e.g. ``spec.replace_values(loads={"M_max": 1200.0})``.
 
         Checked like the file: the new numbers go through the same rules.
@@ -554,7 +555,7 @@ def _check(table):
     return Spec(structure=structure, values=values, resolved=table)
 
 
-def parse_spec(text, source="spec"):
+def parse_spec(text: str, source: str = "spec") -> Spec:
     """Check a TOML text (merged over the default: a file need only hold what it changes)."""
     if text.startswith("\ufeff"):  # a UTF-8 byte-order mark, as Windows editors write
         text = text[1:]
@@ -565,7 +566,7 @@ def parse_spec(text, source="spec"):
     return _check(_merge(tomllib.loads(DEFAULT_SPEC_TOML), _legacy(given)))
 
 
-def load_spec(path=None):
+def load_spec(path: str | os.PathLike | None = None) -> Spec:
     """The specification in the TOML file at ``path``, or the embedded default when None."""
     if path is None:
         return parse_spec(DEFAULT_SPEC_TOML, "the default spec")

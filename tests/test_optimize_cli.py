@@ -18,6 +18,7 @@ SPEC = optimize.load_spec()
 def run_cli(*args, cwd=None, **popen):
     command = [
         sys.executable,
+        "-P",  # the installed package, not the source folders of the repository root
         "-c",
         "from tripodjax.optimize.cli import command; command()",
         *args,
@@ -138,6 +139,7 @@ def test_cli_ctrl_c_prints_one_line_and_exits_130(tmp_path):
     env = dict(os.environ, TRIPODJAX_CACHE_DIR=str(tmp_path / "cache"))
     command = [
         sys.executable,
+        "-P",  # the installed package, not the source folders of the repository root
         "-c",
         "from tripodjax.optimize.cli import command; command()",
         "--out",
