@@ -21,6 +21,7 @@ there the functions propagate NaN and/or a result code instead.
 import dataclasses
 import math
 import numbers
+import typing
 
 import jax
 import numpy as np
@@ -377,7 +378,11 @@ def check_conformity(value, name="conformity"):
 # --------------------------------------------------------------------------- pytrees
 
 
-def checked_pytree_dataclass(cls):
+_T = typing.TypeVar("_T")
+
+
+@typing.dataclass_transform(frozen_default=True)
+def checked_pytree_dataclass(cls: type[_T]) -> type[_T]:
     """A frozen dataclass registered as a pytree whose ``__post_init__`` checks run on user calls only.
 
     Unlike `tripodjax._pytree.pytree_dataclass`, JAX rebuilds instances
@@ -387,7 +392,7 @@ def checked_pytree_dataclass(cls):
     ``TypeError`` instead of being taken for a JAX placeholder.
     """
     cls = dataclasses.dataclass(frozen=True)(cls)
-    names = tuple(f.name for f in dataclasses.fields(cls))
+    names = tuple(f.name for f in dataclasses.fields(cls))  # type: ignore[arg-type]  # a dataclass now
     keys = tuple(jax.tree_util.GetAttrKey(name) for name in names)
 
     def flatten_with_keys(obj):

@@ -26,6 +26,8 @@ import platform
 import subprocess
 import sys
 import time
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -33,13 +35,13 @@ COMPARED = ("delta_pp", "irregularity", "gamma_pp", "ecc_max")
 SOLVERS = ("newton", "analytic", "closed_form")
 
 
-def random_layouts(n, seed=0):
+def random_layouts(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Layouts drawn uniformly over R 18–42 mm, l 300–800 mm, γ0 5–25° (the seed's design range)."""
     rng = np.random.default_rng(seed)
     return rng.uniform(18, 42, n), rng.uniform(300, 800, n), np.radians(rng.uniform(5, 25, n))
 
 
-def domain_layouts(n, seed=1):
+def domain_layouts(n: int, seed: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Layouts over the whole domain: R/l log-uniform 1e-3…0.2, γ0 uniform 0…45°, l 50–2000 mm.
 
     The first eighth sits on the edges R/l = 0.2 or γ0 = 45°, the corner included.
@@ -61,7 +63,14 @@ def domain_layouts(n, seed=1):
 NUMPY_RTOL = 32 * np.finfo(float).eps
 
 
-def numpy_newton_metrics(R, l, gamma0, n_theta, rtol=NUMPY_RTOL, max_steps=24):
+def numpy_newton_metrics(
+    R: np.ndarray,
+    l: np.ndarray,
+    gamma0: np.ndarray,
+    n_theta: int,
+    rtol: float = NUMPY_RTOL,
+    max_steps: int = 24,
+) -> dict[str, Any]:
     """delta_pp, irregularity, gamma_pp by a vectorised NumPy Newton of the same scaled pair.
 
     The residual and closed-form Jacobian are the library's own
@@ -121,7 +130,9 @@ def _printed_pair(x, theta, R, l, gamma0):
     ]
 
 
-def fsolve_metrics(R, l, gamma0, n_theta):
+def fsolve_metrics(
+    R: np.ndarray, l: np.ndarray, gamma0: np.ndarray, n_theta: int
+) -> dict[str, np.ndarray]:
     """The seed's workflow: fsolve per angle on the printed pair, dψ/dθ by central differences."""
     import warnings
 
@@ -129,7 +140,7 @@ def fsolve_metrics(R, l, gamma0, n_theta):
 
     n_period = n_theta // 3
     theta = np.arange(n_period) * (2 * np.pi / 3 / n_period)
-    out = {name: [] for name in COMPARED}
+    out: dict[str, list[float]] = {name: [] for name in COMPARED}
     step = 1e-6
     warnings.filterwarnings("ignore", "The iteration is not making good progress", RuntimeWarning)
     for Ri, li, gi in zip(R, l, gamma0, strict=False):
@@ -167,13 +178,13 @@ def _relative_error(values, reference):
 
 
 def run(
-    n_layouts=20000,
-    n_theta=360,
-    fsolve_layouts=20,
-    repeats=3,
-    gradient_layouts=2000,
-    domain_n=2000,
-):
+    n_layouts: int = 20000,
+    n_theta: int = 360,
+    fsolve_layouts: int = 20,
+    repeats: int = 3,
+    gradient_layouts: int = 2000,
+    domain_n: int = 2000,
+) -> dict[str, Any]:
     import jax
     import jax.numpy as jnp
 
@@ -181,7 +192,7 @@ def run(
 
     R, l, g0 = random_layouts(n_layouts)
     points = n_layouts * (n_theta // 3)
-    results = {
+    results: dict[str, Any] = {
         "machine": platform.machine(),
         "processor": platform.processor(),
         "cpu_count": os.cpu_count(),
@@ -206,7 +217,7 @@ def run(
     for solver in SOLVERS:
         for dtype in (np.float64, np.float32):
             batch = layouts(dtype)
-            holder = {}
+            holder: dict[str, Any] = {}
 
             def call(holder=holder, batch=batch, solver=solver):
                 holder["r"] = tj.sweep(batch, n_theta=n_theta, solver=solver, outputs=COMPARED)
@@ -279,7 +290,7 @@ def run(
     return results
 
 
-def memory_of_sweep(n_layouts, n_theta=360):
+def memory_of_sweep(n_layouts: int, n_theta: int = 360) -> dict[str, Any]:
     """Peak resident memory [MB] a fresh process adds by sweeping n_layouts (newton, float64)."""
     code = (
         "import resource, jax, numpy as np; jax.config.update('jax_enable_x64', True);"
@@ -303,7 +314,7 @@ def memory_of_sweep(n_layouts, n_theta=360):
     }
 
 
-def report(results):
+def report(results: dict[str, Any]) -> str:
     lines = [
         f"tripodjax bench — {results['n_layouts']} layouts × {results['angles_solved_per_layout']} angles "
         f"(one period of {results['n_theta']}), backend {results['backend']}, {results['cpu_count']} CPU cores",
@@ -351,7 +362,7 @@ def report(results):
     return "\n".join(lines)
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     try:
         import scipy.optimize  # noqa: F401  (the fsolve peer)
     except ModuleNotFoundError:

@@ -9,7 +9,7 @@ Entries the seed leaves blank are omitted (the GI 100 C has no R).
 import math
 
 # GE (Glaenzer Exterior, plain-bearing rollers), M_d rated for β = 6–27°.
-GE = {
+GE: dict[str, dict[str, float]] = {
     "58": dict(R=14.1, d=16.9, M_b=1350.0, M_drive=1200.0, M_d=100.0),
     "66": dict(R=16.15, d=19.7, M_b=1950.0, M_drive=1750.0, M_d=150.0),
     "76": dict(R=18.3, d=21.9, M_b=2400.0, M_drive=2100.0, M_d=220.0),
@@ -22,7 +22,7 @@ GE = {
 }
 
 # GI (Glaenzer Interior, needle-bearing rollers), M_d rated for β = 6–12°, plunge ±10 mm.
-GI = {
+GI: dict[str, dict[str, float]] = {
     "580": dict(R=18.64, d=29.2, M_b=1900.0, M_drive=1040.0, M_d=220.0),
     "62": dict(R=20.84, d=31.95, M_b=2600.0, M_drive=1240.0, M_d=290.0),
     "69": dict(R=23.2, d=29.95, M_b=3000.0, M_drive=1660.0, M_d=330.0),
@@ -32,5 +32,5 @@ GI = {
 }
 
 # Working-angle ranges of the M_d ratings [rad].
-GE_RATING_ANGLES = (math.radians(6.0), math.radians(27.0))
-GI_RATING_ANGLES = (math.radians(6.0), math.radians(12.0))
+GE_RATING_ANGLES: tuple[float, float] = (math.radians(6.0), math.radians(27.0))
+GI_RATING_ANGLES: tuple[float, float] = (math.radians(6.0), math.radians(12.0))

@@ -19,9 +19,11 @@ Units: torque N·m, R mm (GAF = 2000 T_d Σ μ / (3 R) in N), angles rad.
 
 import functools
 import math
+from typing import Any
 
 import jax
 import jax.numpy as jnp
+from jax.typing import ArrayLike
 
 from tripodjax import joint, solvers
 from tripodjax._checks import (
@@ -33,8 +35,9 @@ from tripodjax._checks import (
     checked_pytree_dataclass,
 )
 from tripodjax._pytree import pytree_dataclass
+from tripodjax.halfshaft import HalfshaftSolution
 from tripodjax.kinematics import _check_n_theta, revolution
-from tripodjax.layout import check_layout
+from tripodjax.layout import Layout, check_layout
 from tripodjax.results import RESULTS, code_where, worst
 
 GAF_MODELS = ("printed", "stroke")
@@ -80,11 +83,11 @@ class FrictionParams:
     mu_slp: float = 0.06
     lam: float = 0.007
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for name in self.__dataclass_fields__:
             check_non_negative(f"FrictionParams.{name}", getattr(self, name))
 
-    def replace(self, **changes):
+    def replace(self, **changes: Any) -> "FrictionParams":
         """A copy with some fields changed, e.g. ``params.replace(mu_slp=0.04)``."""
         fields = {name: getattr(self, name) for name in self.__dataclass_fields__}
         fields.update(changes)
@@ -100,13 +103,15 @@ def _degrees(gamma):
     return gamma * (180.0 / math.pi)
 
 
-def mu_sta(gamma, torque, params=GREASE_A):
+def mu_sta(gamma: ArrayLike, torque: ArrayLike, params: FrictionParams = GREASE_A) -> jax.Array:
     """Static friction coefficient μ_sta [–] (3.2.9) at articulation γ [rad] and torque T_d [N·m]."""
     g = _degrees(gamma)
     return params.C_s1 + (params.C_s2 + params.C_s3 * g) * (1.0 - jnp.exp(-params.C_s4 * torque))
 
 
-def mu_avg(theta, gamma, torque, params=GREASE_A):
+def mu_avg(
+    theta: ArrayLike, gamma: ArrayLike, torque: ArrayLike, params: FrictionParams = GREASE_A
+) -> jax.Array:
     """Mean friction coefficient of a roller at its angle θ [rad] (3.2.10)."""
     g = _degrees(gamma)
     static = mu_sta(gamma, torque, params)
@@ -118,13 +123,15 @@ def mu_avg(theta, gamma, torque, params=GREASE_A):
     )
 
 
-def mu_slip_to_roll(gamma, params=GREASE_A):
+def mu_slip_to_roll(gamma: ArrayLike, params: FrictionParams = GREASE_A) -> ArrayLike:
     """Combined sliding–rolling coefficient μ_S/R = R_s γ μ_slp + (1 − R_s γ) λ (3.2.12), γ in rad."""
     slip = params.R_s * gamma
     return slip * params.mu_slp + (1.0 - slip) * params.lam
 
 
-def mu_dyn(theta, gamma, params=GREASE_A, stroke="in"):
+def mu_dyn(
+    theta: ArrayLike, gamma: ArrayLike, params: FrictionParams = GREASE_A, stroke: str = "in"
+) -> jax.Array:
     """Dynamic friction coefficient (3.2.11) for the inward (+) or outward (−) stroke."""
     check_choice("stroke", stroke, STROKES)
     sign = 1.0 if stroke == "in" else -1.0
@@ -138,7 +145,9 @@ def mu_dyn(theta, gamma, params=GREASE_A, stroke="in"):
 CONTACTS = ("line", "elliptical")
 
 
-def rolling_resistance_hysteresis(a, rolling_radius, loss_factor, contact="elliptical"):
+def rolling_resistance_hysteresis(
+    a: ArrayLike, rolling_radius: ArrayLike, loss_factor: ArrayLike, contact: str = "elliptical"
+) -> ArrayLike:
     """Rolling resistance λ [–] from elastic hysteresis (3.2.6, 3.2.7).
 
     λ = α · 2a/(3π R) for a line contact, α · 3a/(16 R) for an elliptical one,
@@ -154,7 +163,9 @@ def rolling_resistance_hysteresis(a, rolling_radius, loss_factor, contact="ellip
     return loss_factor * factor * a / rolling_radius
 
 
-def rolling_resistance_microslip(b, rolling_radius, mu):
+def rolling_resistance_microslip(
+    b: ArrayLike, rolling_radius: ArrayLike, mu: ArrayLike
+) -> ArrayLike:
     """Rolling resistance λ = 0.08 μ b²/R² [–] from micro-slip (Heathcote, 3.2.8).
 
     b: half of the larger width of the contact ellipse [mm]; R: rolling
@@ -166,7 +177,9 @@ def rolling_resistance_microslip(b, rolling_radius, mu):
     return 0.08 * mu * (b / rolling_radius) ** 2
 
 
-def friction_from_trunnion_force(F_x, F_y, F_z, theta, gamma):
+def friction_from_trunnion_force(
+    F_x: ArrayLike, F_y: ArrayLike, F_z: ArrayLike, theta: ArrayLike, gamma: ArrayLike
+) -> jax.Array:
     """Friction coefficient from a triaxial trunnion force measurement (3.2.4).
 
     μ = [−cos θ sin γ F_x + cos γ F_y + sin θ sin γ F_z]
@@ -216,7 +229,15 @@ def _check_params(params, name="params"):
     check_instance(name, params, FrictionParams, "a FrictionParams, e.g. friction.GREASE_A")
 
 
-def gaf(theta, gamma, torque, R, params=GREASE_A, model="printed", width=DEFAULT_STROKE_WIDTH):
+def gaf(
+    theta: ArrayLike,
+    gamma: ArrayLike,
+    torque: ArrayLike,
+    R: ArrayLike,
+    params: FrictionParams = GREASE_A,
+    model: str = "printed",
+    width: float = DEFAULT_STROKE_WIDTH,
+) -> jax.Array:
     """Generated axial force [N] at roller-1 angle θ [rad] (3.2.14–3.2.15).
 
     Args:
@@ -257,7 +278,7 @@ def _safe_rms(x, axis=-1):
     return jnp.where(positive, jnp.sqrt(jnp.where(positive, mean_square, 1.0)), mean_square)
 
 
-def harmonic_amplitude(signal, order_per_sample_period):
+def harmonic_amplitude(signal: jax.Array, order_per_sample_period: ArrayLike) -> jax.Array:
     """Amplitude of the harmonic that completes ``order_per_sample_period`` cycles over the samples."""
     n = signal.shape[-1]
     phase = 2.0 * jnp.pi * order_per_sample_period * jnp.arange(n) / n
@@ -290,7 +311,15 @@ class GAFResult:
     result: jax.Array
 
 
-def gaf_from_revolution(layout, sol, rates, torque, params, model, width):
+def gaf_from_revolution(
+    layout: Layout,
+    sol: HalfshaftSolution,
+    rates: HalfshaftSolution,
+    torque: ArrayLike,
+    params: FrictionParams,
+    model: str,
+    width: ArrayLike,
+) -> GAFResult:
     """GAF over a revolution from a halfshaft solution and its θ-rates (see [`gaf_halfshaft`][tripodjax.friction.gaf_halfshaft]).
 
     ``sol, rates`` come from [`revolution`][tripodjax.kinematics.revolution] with
@@ -318,16 +347,16 @@ def gaf_from_revolution(layout, sol, rates, torque, params, model, width):
 
 
 def gaf_halfshaft(
-    layout,
-    torque,
-    params=GREASE_A,
-    n_theta=360,
-    model="printed",
-    width=DEFAULT_STROKE_WIDTH,
-    solver="newton",
+    layout: Layout,
+    torque: ArrayLike,
+    params: FrictionParams = GREASE_A,
+    n_theta: int = 360,
+    model: str = "printed",
+    width: float = DEFAULT_STROKE_WIDTH,
+    solver: solvers.SolverLike = "newton",
     *,
-    fidelity=solvers._UNSET,
-):
+    fidelity: str | None | solvers._Unset = solvers._UNSET,
+) -> GAFResult:
     """GAF of a halfshaft over a revolution, from the instantaneous γ(θ) and roller angles.
 
     The Lee model's roller angle is θ_L,i = ψ_i + 90°: the kinematics measure

@@ -30,20 +30,26 @@ elementwise on arrays of any shape.
 """
 
 import functools
+from types import ModuleType
+from typing import Any, TypeAlias
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jax.custom_derivatives import SymbolicZero
+from jax.typing import ArrayLike, DTypeLike
 
 from tripodjax import solvers
 from tripodjax._checks import check_real
 from tripodjax._pytree import pytree_dataclass
-from tripodjax.layout import check_layout
+from tripodjax.layout import Layout, check_layout
 from tripodjax.results import RESULTS, code_where
 from tripodjax.solvers import DEFAULT_MAX_STEPS, Analytic, Newton, SolverError  # noqa: F401
 
 _RTOL_EPS_MULTIPLE = 32.0
+
+XpArray: TypeAlias = Any
+"""An array (or number) of the array module ``xp`` of the generic helpers: NumPy or jax.numpy."""
 
 
 def _sinc(xp, y, sin_y):
@@ -59,7 +65,9 @@ def _working_arrays(layout, theta):
     return tuple(jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0, theta))
 
 
-def layout_constants(xp, R, l, gamma0, theta):
+def layout_constants(
+    xp: ModuleType, R: XpArray, l: XpArray, gamma0: XpArray, theta: XpArray
+) -> dict[str, XpArray]:
     """The loop invariants of the scaled pair for array module ``xp`` (jax.numpy or numpy)."""
     half0 = 0.5 * gamma0
     s0, c0 = xp.sin(half0), xp.cos(half0)
@@ -78,7 +86,13 @@ def layout_constants(xp, R, l, gamma0, theta):
     )
 
 
-def scaled_system(xp, consts, delta, v, small_angles=False):
+def scaled_system(
+    xp: ModuleType,
+    consts: dict[str, XpArray],
+    delta: XpArray,
+    v: XpArray,
+    small_angles: bool = False,
+) -> tuple[tuple[XpArray, XpArray], tuple[tuple[XpArray, XpArray], tuple[XpArray, XpArray]]]:
     """Scaled residual (g1, g2) and closed-form Jacobian of the pair at (Δ, v).
 
     Every angle is built from two sine–cosine pairs, of Δ/2 and of
@@ -131,19 +145,24 @@ def scaled_system(xp, consts, delta, v, small_angles=False):
     return (g1, g2), ((j11, j12), (j21, j22))
 
 
-def newton_step(residual, jacobian):
+def newton_step(
+    residual: tuple[XpArray, XpArray],
+    jacobian: tuple[tuple[XpArray, XpArray], tuple[XpArray, XpArray]],
+) -> tuple[XpArray, XpArray]:
     """The Newton step −J⁻¹ g of a 2×2 system by Cramer's rule, elementwise."""
     (g1, g2), ((j11, j12), (j21, j22)) = residual, jacobian
     inv_det = 1.0 / (j11 * j22 - j12 * j21)
     return -(g1 * j22 - j12 * g2) * inv_det, -(j11 * g2 - g1 * j21) * inv_det
 
 
-def first_order_amplitude(consts):
+def first_order_amplitude(consts: dict[str, XpArray]) -> XpArray:
     """e(γ0)/|h|, the first-order amplitude of Δ (§2.11): the unknowns' typical size."""
     return consts["k"] * consts["s0"] / (consts["cos_g0"] * consts["H"])
 
 
-def scaled_residual(R, l, gamma0, theta, x):
+def scaled_residual(
+    R: ArrayLike, l: ArrayLike, gamma0: ArrayLike, theta: ArrayLike, x: jax.Array
+) -> jax.Array:
     """The pair 2.9.1–2.9.2 divided by 2 l sin(γ0/2), in x = (Δ, v). Dimensionless, (..., 2).
 
     With k = R/(2l), H = cos(γ0/2) + k sin(γ0/2) (so h = −2 l sin(γ0/2) H),
@@ -160,19 +179,21 @@ def scaled_residual(R, l, gamma0, theta, x):
     return jnp.stack([g1, g2], axis=-1)
 
 
-def scaled_jacobian(R, l, gamma0, theta, x):
+def scaled_jacobian(
+    R: ArrayLike, l: ArrayLike, gamma0: ArrayLike, theta: ArrayLike, x: jax.Array
+) -> jax.Array:
     """Closed-form Jacobian ∂(g1, g2)/∂(Δ, v) of [`scaled_residual`][tripodjax.halfshaft.scaled_residual], (..., 2, 2)."""
     consts = layout_constants(jnp, R, l, gamma0, theta)
     _, ((j11, j12), (j21, j22)) = scaled_system(jnp, consts, x[..., 0], x[..., 1])
     return jnp.stack([jnp.stack([j11, j12], -1), jnp.stack([j21, j22], -1)], -2)
 
 
-def default_rtol(dtype):
+def default_rtol(dtype: DTypeLike) -> float:
     """Default step tolerance of the Newton solve: 32 machine epsilons of ``dtype``."""
     return _RTOL_EPS_MULTIPLE * float(jnp.finfo(dtype).eps)
 
 
-def small_angle_sincos(x):
+def small_angle_sincos(x: XpArray) -> tuple[XpArray, XpArray]:
     """(sin x, cos x) by Taylor polynomials to x⁹ and x⁸: exact to roundoff for |x| ≤ 0.05.
 
     Used by the corrections of [`Analytic`][tripodjax.solvers.Analytic], where
@@ -184,7 +205,9 @@ def small_angle_sincos(x):
     return sin, cos
 
 
-def analytic_unknowns(xp, consts, theta):
+def analytic_unknowns(
+    xp: ModuleType, consts: dict[str, XpArray], theta: XpArray
+) -> tuple[XpArray, XpArray]:
     """(Δ, v) of the closed form of [`analytic_halfshaft`][tripodjax.halfshaft.analytic_halfshaft]; θ enters through sin 3θ, cos 3θ."""
     k, s0, c0, H, half0 = (consts[n] for n in ("k", "s0", "c0", "H", "half0"))
     sin3, cos3 = xp.sin(3.0 * theta), xp.cos(3.0 * theta)
@@ -351,8 +374,14 @@ class HalfshaftSolution:
 
 
 def solve_halfshaft(
-    layout, theta, solver="newton", *, throw=False, rtol=solvers._UNSET, max_steps=solvers._UNSET
-):
+    layout: Layout,
+    theta: ArrayLike,
+    solver: solvers.SolverLike = "newton",
+    *,
+    throw: bool = False,
+    rtol: float | None | solvers._Unset = solvers._UNSET,
+    max_steps: int | solvers._Unset = solvers._UNSET,
+) -> HalfshaftSolution:
     """Solve ψ(θ) and γ(θ) of a halfshaft for every input angle in ``theta``.
 
     Args:
@@ -410,7 +439,7 @@ def _solve(layout, theta, solver):
     return _solution(theta, gamma0, delta, v, residual, estimate, result, steps)
 
 
-def analytic_halfshaft(layout, theta, corrections=1):
+def analytic_halfshaft(layout: Layout, theta: ArrayLike, corrections: int = 1) -> HalfshaftSolution:
     """The [`Analytic`][tripodjax.solvers.Analytic] level (``corrections=0``: the closed form alone).
 
     The closed form of [`analytic_unknowns`][tripodjax.halfshaft.analytic_unknowns] — the seed's first order
@@ -421,7 +450,9 @@ def analytic_halfshaft(layout, theta, corrections=1):
     return solve_halfshaft(layout, theta, Analytic(corrections=corrections))
 
 
-def raise_first_failure(result, theta, what, index_prefix=""):
+def raise_first_failure(
+    result: ArrayLike, theta: ArrayLike, what: str, index_prefix: str = ""
+) -> None:
     """Raise SolverError naming the first point whose ``result`` is not successful (concrete only)."""
     if isinstance(result, jax.core.Tracer):
         raise TypeError(f"{what}: throw=True needs concrete values; it works outside jax.jit only")
@@ -430,11 +461,11 @@ def raise_first_failure(result, theta, what, index_prefix=""):
     if not bad.size:
         return
     index = np.unravel_index(int(bad[0]), codes.shape)
-    theta = np.broadcast_to(np.asarray(theta), codes.shape)[index]
+    theta_at = np.broadcast_to(np.asarray(theta), codes.shape)[index]
     code = RESULTS(int(codes[index]))
     where = ", ".join(str(int(i)) for i in index)
     raise SolverError(
-        f"{what}: {index_prefix}point [{where}] at θ = {float(theta):.6g} rad: "
+        f"{what}: {index_prefix}point [{where}] at θ = {float(theta_at):.6g} rad: "
         f"{code.name} ({code.describe()}); {bad.size} of {codes.size} points not successful"
     )
 

@@ -31,6 +31,7 @@ import math
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.typing import ArrayLike
 
 from tripodjax._checks import (
     MIN_CONFORMITY,  # re-exported: hertz.MIN_CONFORMITY
@@ -103,7 +104,7 @@ def _elliptic_agm(m, m1):
     return K, K * (1.0 - m * weighted), K * weighted
 
 
-def _nan_unless(ok, value):
+def _nan_unless(ok: ArrayLike, value: ArrayLike) -> jax.Array:
     """``value`` where ``ok``, NaN elsewhere (NaN, not a plausible number, for bad traced input)."""
     value = jnp.asarray(value)
     return jnp.where(ok, value, jnp.asarray(jnp.nan, value.dtype))
@@ -125,7 +126,7 @@ def _all_finite(*values):
     return ok
 
 
-def elliptic_integrals(m):
+def elliptic_integrals(m: ArrayLike) -> tuple[jax.Array, jax.Array]:
     """Complete elliptic integrals of the first and second kind, (K(m), E(m)), 0 ≤ m < 1.
 
     Parameter convention m = k² (as SciPy's ``ellipk``/``ellipe``). Computed by
@@ -237,7 +238,7 @@ def _hertz_coefficients(cos_tau):
     return HertzCoefficients(kappa=kappa, mu=mu, nu=nu, mu_nu=mu * nu, result=code)
 
 
-def hertz_coefficients(cos_tau):
+def hertz_coefficients(cos_tau: ArrayLike) -> HertzCoefficients:
     """κ, μ, ν and μν from the curvature function cos τ, 0 ≤ cos τ < 1.
 
     Exact Hertz theory: the ellipse ratio solves the cos τ(κ) relation above by
@@ -251,7 +252,7 @@ def hertz_coefficients(cos_tau):
     return _hertz_coefficients(cos_tau)
 
 
-def mu_nu(cos_tau):
+def mu_nu(cos_tau: ArrayLike) -> jax.Array:
     """The Hertz product μν for the curvature function cos τ in [0, 1) (see [`hertz_coefficients`][tripodjax.hertz.hertz_coefficients])."""
     return hertz_coefficients(cos_tau).mu_nu
 
@@ -276,7 +277,7 @@ class ContactGeometry:
     cos_tau: jax.Array
 
 
-def contact_geometry(conformity):
+def contact_geometry(conformity: ArrayLike) -> ContactGeometry:
     """Contact geometry of a roller in a straight track of conformity Ψ = 2 R_g / d.
 
     Ψ ≥ `MIN_CONFORMITY` = 1.0005 (Ψ − 1 ≥ 5·10⁻⁴; the workbook's
@@ -307,7 +308,7 @@ def _conformity_coefficient(conformity):
     return C_p, coefficients.mu_nu, coefficients.result
 
 
-def conformity_coefficient(conformity):
+def conformity_coefficient(conformity: ArrayLike) -> jax.Array:
     """C_p = (858/(μν)) (dΣρ)^(2/3) [MPa·N^(-1/3)·mm^(2/3)] for steel on steel (Ψ ≥ 1.0005)."""
     return _conformity_coefficient(conformity)[0]
 
@@ -338,8 +339,13 @@ def _check_elastic(young_modulus, poisson):
 
 
 def roller_contact(
-    load, d, *, conformity, young_modulus=YOUNG_MODULUS_STEEL, poisson=POISSON_STEEL
-):
+    load: ArrayLike,
+    d: ArrayLike,
+    *,
+    conformity: ArrayLike,
+    young_modulus: ArrayLike = YOUNG_MODULUS_STEEL,
+    poisson: ArrayLike = POISSON_STEEL,
+) -> Contact:
     """Contact pressure and ellipse semi-axes for a roller load Q [N] on a roller of diameter d [mm].
 
     a = μ k, b = ν k with k = (3 Q (1 − ν_P²) / (E Σρ))^(1/3), Σρ = dΣρ / d, and
@@ -400,8 +406,17 @@ def _torque_at_pressure(pressure, d, R, C_p, C_s, n_rollers, pressure_angle, hel
 
 
 def torque_at_pressure(
-    pressure, d, R, *, C_p, C_s, n_rollers=3, pressure_angle=math.pi / 2, helix_angle=0.0, gamma=0.0
-):
+    pressure: ArrayLike,
+    d: ArrayLike,
+    R: ArrayLike,
+    *,
+    C_p: ArrayLike,
+    C_s: ArrayLike,
+    n_rollers: int = 3,
+    pressure_angle: ArrayLike = math.pi / 2,
+    helix_angle: ArrayLike = 0.0,
+    gamma: ArrayLike = 0.0,
+) -> jax.Array:
     """M(p) = ½(1 + cos γ) n_R (p/(C_s C_p))³ d² R sin ε cos ζ, returned in N·m.
 
     Args: pressure p ≥ 0 [MPa]; d, R > 0 [mm]; C_p > 0
@@ -443,19 +458,19 @@ class Capacities:
 
 
 def capacities(
-    d,
-    R,
+    d: ArrayLike,
+    R: ArrayLike,
     *,
-    conformity,
-    P_s,
-    P_d,
-    P_sd,
-    C_s,
-    n_rollers=3,
-    pressure_angle=math.pi / 2,
-    helix_angle=0.0,
-    gamma=0.0,
-):
+    conformity: ArrayLike,
+    P_s: ArrayLike,
+    P_d: ArrayLike,
+    P_sd: ArrayLike,
+    C_s: ArrayLike,
+    n_rollers: int = 3,
+    pressure_angle: ArrayLike = math.pi / 2,
+    helix_angle: ArrayLike = 0.0,
+    gamma: ArrayLike = 0.0,
+) -> Capacities:
     """Static and dynamic torque capacities of a joint with roller diameter d and PCR R [mm].
 
     Args:
@@ -498,17 +513,17 @@ SIZING_RULES = ("consistent", "workbook")
 
 
 def min_roller_diameter(
-    M_max,
+    M_max: ArrayLike,
     *,
-    R_over_d,
-    conformity,
-    P_s,
-    C_s,
-    n_rollers=3,
-    pressure_angle=math.pi / 2,
-    helix_angle=0.0,
-    rule="consistent",
-):
+    R_over_d: ArrayLike,
+    conformity: ArrayLike,
+    P_s: ArrayLike,
+    C_s: ArrayLike,
+    n_rollers: int = 3,
+    pressure_angle: ArrayLike = math.pi / 2,
+    helix_angle: ArrayLike = 0.0,
+    rule: str = "consistent",
+) -> tuple[jax.Array, jax.Array]:
     """Smallest roller diameter and pitch-circle radius [mm] for a maximum torque M_max [N·m].
 
     ``rule="consistent"``: the static capacity equals M_max,
@@ -540,7 +555,7 @@ def min_roller_diameter(
         d3 = (C_p * C_s / P_s) ** 2 * torque_nmm / geometry_factor
     ok = _finite(M_max, R_over_d, P_s, C_s, C_p, n_rollers, pressure_angle, helix_angle, d3)
     d_min = _nan_unless(ok, jnp.cbrt(d3))
-    return d_min, R_over_d * d_min
+    return d_min, d_min * R_over_d  # (R/d)·d_min
 
 
 # --------------------------------------------------------------------------- life (Palmgren–Miner)
@@ -558,7 +573,7 @@ def _life_hours(M_d, torque, speed, share):
     return _nan_unless(ok, 1.0 / jnp.sum(damage_rate, axis=-1))
 
 
-def life_hours(M_d, torque, speed, share):
+def life_hours(M_d: ArrayLike, torque: ArrayLike, speed: ArrayLike, share: ArrayLike) -> jax.Array:
     """Palmgren–Miner life in hours over a load spectrum (4.2.1, 4.2.2).
 
     L_h,i = (365000 / n_i) (M_d / M_i)³ and 1/L_h = Σ a_i / L_h,i, over the
@@ -584,7 +599,7 @@ def _check_one_shape(owner, fields):
         )
 
 
-def concrete_shape(value):
+def concrete_shape(value: object) -> bool:
     """True when ``value`` has a shape to compare (not traced)."""
     return not isinstance(value, jax.core.Tracer)
 
@@ -603,12 +618,12 @@ class LoadSpectrum:
     when JAX rebuilds one, nor for traced fields).
     """
 
-    torque: jax.Array
-    speed: jax.Array
-    vehicle_speed: jax.Array
-    share: jax.Array
+    torque: ArrayLike
+    speed: ArrayLike
+    vehicle_speed: ArrayLike
+    share: ArrayLike
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check_non_negative("LoadSpectrum.torque", self.torque, " N·m")
         check_non_negative("LoadSpectrum.speed", self.speed, " rpm")
         check_non_negative("LoadSpectrum.vehicle_speed", self.vehicle_speed, " km/h")
@@ -632,10 +647,10 @@ class WorkingConditions:
     All finite real numbers; checked when built from concrete values.
     """
 
-    angle: jax.Array
-    share: jax.Array
+    angle: ArrayLike
+    share: ArrayLike
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check(
             "WorkingConditions.angle",
             self.angle,
@@ -668,18 +683,18 @@ class Life:
 
 
 def joint_life(
-    d,
-    R,
-    spectrum,
-    conditions,
+    d: ArrayLike,
+    R: ArrayLike,
+    spectrum: LoadSpectrum,
+    conditions: WorkingConditions,
     *,
-    conformity,
-    P_d,
-    C_s,
-    n_rollers=3,
-    pressure_angle=math.pi / 2,
-    helix_angle=0.0,
-):
+    conformity: ArrayLike,
+    P_d: ArrayLike,
+    C_s: ArrayLike,
+    n_rollers: int = 3,
+    pressure_angle: ArrayLike = math.pi / 2,
+    helix_angle: ArrayLike = 0.0,
+) -> Life:
     """Palmgren–Miner life of a joint in hours and km (4.2.1–4.2.3).
 
     For each working condition j the capacity M_d(γ_j) gives the spectrum's

@@ -16,21 +16,24 @@ gives.
 """
 
 import functools
+from collections.abc import Iterable
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.typing import ArrayLike, DTypeLike
 
 from tripodjax import joint, solvers
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.halfshaft import (
+    HalfshaftSolution,
     _sinc,
     _solve,
     first_order_amplitude,
     layout_constants,
     raise_first_failure,
 )
-from tripodjax.layout import check_layout
+from tripodjax.layout import Layout, check_layout
 from tripodjax.results import RESULTS
 
 
@@ -94,7 +97,7 @@ def _check_n_theta(n_theta):
         )
 
 
-def period_grid(n_theta, dtype):
+def period_grid(n_theta: int, dtype: DTypeLike) -> jax.Array:
     """The n_theta/3 input angles [rad] of one period 0 ≤ θ < 2π/3 of a grid of n_theta per turn.
 
     Every halfshaft quantity has period 2π/3 in θ (§2.10), and roller i at θ
@@ -111,7 +114,9 @@ def _ptp(x, axis=None):
     return jnp.max(x, axis=axis) - jnp.min(x, axis=axis)
 
 
-def revolution(layout, n_theta, solver="newton", *, with_rates):
+def revolution(
+    layout: Layout, n_theta: int, solver: solvers.SolverLike = "newton", *, with_rates: bool
+) -> tuple[HalfshaftSolution, HalfshaftSolution | None]:
     """The halfshaft solution over one period of an n_theta grid, and its θ-derivative.
 
     Args:
@@ -229,7 +234,12 @@ NEEDS_RATES = ("irregularity",)
 METRICS = tuple(_METRICS)
 
 
-def metrics_from(layout, sol, rates, names):
+def metrics_from(
+    layout: Layout,
+    sol: HalfshaftSolution,
+    rates: HalfshaftSolution | None,
+    names: Iterable[str],
+) -> dict[str, jax.Array]:
     """The named kinematic metrics (KinematicMetrics field names) from a [`revolution`][tripodjax.kinematics.revolution].
 
     Only the metrics named are built (``rates`` may be None unless
@@ -245,8 +255,13 @@ def metrics_from(layout, sol, rates, names):
 
 
 def kinematic_metrics(
-    layout, n_theta=360, solver="newton", *, throw=False, fidelity=solvers._UNSET
-):
+    layout: Layout,
+    n_theta: int = 360,
+    solver: solvers.SolverLike = "newton",
+    *,
+    throw: bool = False,
+    fidelity: str | None | solvers._Unset = solvers._UNSET,
+) -> KinematicMetrics:
     """Kinematic metrics of a halfshaft layout over one revolution.
 
     Args:
@@ -287,7 +302,14 @@ def _kinematic_metrics(layout, *, n_theta, solver):
     return KinematicMetrics(**metrics_from(layout, sol, rates, METRICS))
 
 
-def raise_failure_of_revolution(result, layout, n_theta, solver, what, index=None):
+def raise_failure_of_revolution(
+    result: ArrayLike,
+    layout: Layout,
+    n_theta: int,
+    solver: solvers.SolverLike,
+    what: str,
+    index: int | None = None,
+) -> None:
     """Raise SolverError for a revolution whose worst code is not successful, naming the angle.
 
     Solves the revolution again (concrete values, outside jit) to find the

@@ -2,8 +2,10 @@
 
 import math
 import numbers
+from typing import TypeGuard
 
 import numpy as np
+from jax.typing import ArrayLike
 
 from tripodjax._checks import (
     MAX_GAMMA0,
@@ -18,7 +20,7 @@ from tripodjax._checks import (
 __all__ = ["MAX_GAMMA0", "MAX_R_OVER_L", "TABLE_2_1", "Layout", "check_layout", "seed_case"]
 
 
-def _is_scalar(value):
+def _is_scalar(value: object) -> TypeGuard[numbers.Real | np.ndarray]:
     """A concrete real scalar: a Python/NumPy number (not bool) or a 0-d NumPy array."""
     if isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_)):
         return True
@@ -53,11 +55,11 @@ class Layout:
     Use [`from_degrees`][tripodjax.layout.Layout.from_degrees] to give ``gamma0`` in degrees.
     """
 
-    R: float
-    l: float
-    gamma0: float
+    R: ArrayLike
+    l: ArrayLike
+    gamma0: ArrayLike
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         values = {"R": self.R, "l": self.l, "gamma0": self.gamma0}
         for name, value in values.items():
             check_real(f"Layout.{name}", value)
@@ -67,7 +69,7 @@ class Layout:
         )
 
     @classmethod
-    def from_degrees(cls, R, l, gamma0_deg):
+    def from_degrees(cls, R: ArrayLike, l: ArrayLike, gamma0_deg: ArrayLike) -> "Layout":
         """Build a Layout with the layout articulation angle in degrees (0 ≤ gamma0_deg ≤ 45)."""
         check_real("gamma0_deg", gamma0_deg)
         if _is_scalar(gamma0_deg):
@@ -76,7 +78,9 @@ class Layout:
         return cls(R, l, gamma0_deg * (math.pi / 180.0))
 
 
-def check_layout(layout, name="layout", allowed="a Layout, e.g. Layout(25.0, 500.0, 0.35)"):
+def check_layout(
+    layout: object, name: str = "layout", allowed: str = "a Layout, e.g. Layout(25.0, 500.0, 0.35)"
+) -> Layout:
     """``TypeError`` naming ``name`` unless ``layout`` is a [`Layout`][tripodjax.layout.Layout] (its fields were checked).
 
     The one type rule of every function that takes a layout
@@ -88,7 +92,7 @@ def check_layout(layout, name="layout", allowed="a Layout, e.g. Layout(25.0, 500
 
 
 # The seed's Table 2.1 cases (§2.10): code → (l [mm], R [mm], γ0 [deg]).
-TABLE_2_1 = {
+TABLE_2_1: dict[str, tuple[float, float, float]] = {
     "N": (500.0, 25.0, 20.0),
     "L3": (300.0, 25.0, 20.0),
     "L4": (400.0, 25.0, 20.0),
@@ -103,7 +107,7 @@ TABLE_2_1 = {
 }
 
 
-def seed_case(code):
+def seed_case(code: str) -> Layout:
     """The Layout of one of the seed's Table 2.1 cases, e.g. ``seed_case("N")``."""
     if not isinstance(code, str):
         raise TypeError(

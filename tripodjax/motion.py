@@ -16,10 +16,12 @@ m/s²: divide by 1000).
 
 import jax
 import jax.numpy as jnp
+from jax.typing import ArrayLike
 
 from tripodjax import joint
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.halfshaft import solve_halfshaft
+from tripodjax.layout import Layout
 
 
 @pytree_dataclass
@@ -67,7 +69,9 @@ def _motion(positions, theta, theta_dot, theta_ddot):
     return JointMotion(*fields)
 
 
-def _prepare(layout, theta, theta_dot, theta_ddot):
+def _prepare(
+    layout: Layout, theta: ArrayLike, theta_dot: ArrayLike, theta_ddot: ArrayLike
+) -> tuple[tuple[jax.Array, ...], list[jax.Array]]:
     """Broadcast θ, θ̇, θ̈ and cast them and the layout to the working dtype."""
     dtype = jnp.result_type(layout.R, layout.l, layout.gamma0, theta, 0.0)
     rates = jnp.broadcast_arrays(*(jnp.asarray(a, dtype) for a in (theta, theta_dot, theta_ddot)))
@@ -76,7 +80,9 @@ def _prepare(layout, theta, theta_dot, theta_ddot):
 
 
 @jax.jit
-def halfshaft_motion(layout, theta, theta_dot, theta_ddot=0.0):
+def halfshaft_motion(
+    layout: Layout, theta: ArrayLike, theta_dot: ArrayLike, theta_ddot: ArrayLike = 0.0
+) -> JointMotion:
     """Exact motion of the spider and roller centres at input angles ``theta``.
 
     Args:
@@ -98,7 +104,9 @@ def halfshaft_motion(layout, theta, theta_dot, theta_ddot=0.0):
 
 
 @jax.jit
-def first_order_motion(layout, theta, theta_dot, theta_ddot=0.0):
+def first_order_motion(
+    layout: Layout, theta: ArrayLike, theta_dot: ArrayLike, theta_ddot: ArrayLike = 0.0
+) -> JointMotion:
     """The seed's first-order motion (2.11.1, 2.11.2): ψ ≈ θ, γ ≈ γ0 constant.
 
     Same arguments and units as [`halfshaft_motion`][tripodjax.motion.halfshaft_motion]. With γ constant the

@@ -7,53 +7,62 @@ notebook bar; [`NoProgressMeter`][tripodjax.progress.NoProgressMeter] prints not
 """
 
 import sys
+from typing import Any, Protocol
+
+
+class ProgressHandle(Protocol):
+    """What [`ProgressMeter.start`][tripodjax.progress.ProgressMeter.start] returns."""
+
+    def update(self, n: int = 1, **postfix: Any) -> None: ...
+
+    def close(self) -> None: ...
 
 
 class ProgressMeter:
     """The interface: ``start`` returns a handle with ``update(n, **postfix)`` and ``close()``."""
 
-    def start(self, total: int, desc: str, unit: str = "it"):
+    def start(self, total: int, desc: str, unit: str = "it") -> ProgressHandle:
         raise NotImplementedError
 
 
 class _Silent:
-    def update(self, n=1, **postfix):
+    def update(self, n: int = 1, **postfix: Any) -> None:
         pass
 
-    def close(self):
+    def close(self) -> None:
         pass
 
-    def __enter__(self):
+    def __enter__(self) -> "_Silent":
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
 
 class NoProgressMeter(ProgressMeter):
     """Shows nothing."""
 
-    def start(self, total, desc, unit="it"):
+    def start(self, total: int, desc: str, unit: str = "it") -> ProgressHandle:
         return _Silent()
 
 
 class _TqdmHandle(_Silent):
-    def __init__(self, bar):
+    def __init__(self, bar: Any) -> None:
         self.bar = bar
 
-    def update(self, n=1, **postfix):
+    def update(self, n: int = 1, **postfix: Any) -> None:
         if postfix:
             self.bar.set_postfix(postfix, refresh=False)
         self.bar.update(n)
 
-    def close(self):
+    def close(self) -> None:
         self.bar.close()
 
 
 class TqdmProgressMeter(ProgressMeter):
     """A ``tqdm.auto`` bar on standard error (a widget in a notebook), with rate and ETA."""
 
-    def start(self, total, desc, unit="it"):
+    def start(self, total: int, desc: str, unit: str = "it") -> ProgressHandle:
         from tqdm.auto import tqdm
 
         return _TqdmHandle(
@@ -63,7 +72,7 @@ class TqdmProgressMeter(ProgressMeter):
         )
 
 
-def resolve(progress) -> ProgressMeter:
+def resolve(progress: bool | ProgressMeter | None) -> ProgressMeter:
     """The meter for a ``progress=`` argument (None: a bar only when stderr is a terminal)."""
     if isinstance(progress, ProgressMeter):
         return progress

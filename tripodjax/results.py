@@ -7,7 +7,9 @@ the optimiser). Combining codes keeps the worst one: [`worst`][tripodjax.results
 
 import enum
 
+import jax
 import jax.numpy as jnp
+from jax.typing import ArrayLike
 
 
 class RESULTS(enum.IntEnum):
@@ -37,7 +39,7 @@ _DESCRIPTIONS = {
 }
 
 
-def worst(*codes, axis=None):
+def worst(*codes: ArrayLike, axis: int | tuple[int, ...] | None = None) -> jax.Array:
     """The worst code among ``codes`` (broadcast together); reduced over ``axis`` when given."""
     combined = codes[0]
     for code in codes[1:]:
@@ -46,6 +48,6 @@ def worst(*codes, axis=None):
     return combined if axis is None else jnp.max(combined, axis=axis)
 
 
-def code_where(condition, code, otherwise):
+def code_where(condition: ArrayLike, code: int, otherwise: ArrayLike) -> jax.Array:
     """``code`` where ``condition`` holds, else ``otherwise`` (int32)."""
     return jnp.where(condition, jnp.int32(code), jnp.asarray(otherwise, jnp.int32))

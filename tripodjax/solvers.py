@@ -21,6 +21,9 @@ The objects are frozen and hashable, so they are static arguments of
 """
 
 import dataclasses
+import enum
+from collections.abc import Callable
+from typing import Final, TypeAlias
 
 import numpy as np
 
@@ -67,7 +70,7 @@ class Newton:
     rtol: float | None = None
     max_steps: int = DEFAULT_MAX_STEPS
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         object.__setattr__(self, "rtol", _check_rtol(self.rtol))
         object.__setattr__(
             self, "max_steps", _check_steps("max_steps", self.max_steps, 1, MAX_MAX_STEPS)
@@ -102,13 +105,13 @@ class Analytic:
     corrections: int = 1
     validity: float = 1e-2
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         object.__setattr__(self, "corrections", _check_steps("corrections", self.corrections, 0, 4))
         validity = check_range("validity", self.validity, 0.0, 1.0, low_open=True, high_open=True)
         object.__setattr__(self, "validity", float(validity))
 
 
-def ClosedForm(validity=1.0 - 1e-9):  # noqa: N802 — a solver "class" like the others
+def ClosedForm(validity: float = 1.0 - 1e-9) -> "Analytic":  # noqa: N802 — a solver "class" like the others
     """The closed form alone: [`Analytic`][tripodjax.solvers.Analytic] with no correction.
 
     The seed's first order (§2.11) plus the γ ripple; over the whole domain it
@@ -120,10 +123,20 @@ def ClosedForm(validity=1.0 - 1e-9):  # noqa: N802 — a solver "class" like the
     return Analytic(corrections=0, validity=validity)
 
 
-SHORTHANDS = {"newton": Newton, "analytic": Analytic, "closed_form": ClosedForm}
+Solver: TypeAlias = Newton | Analytic
+"""A solver object: [`Newton`][tripodjax.solvers.Newton] or [`Analytic`][tripodjax.solvers.Analytic] (incl. ``ClosedForm()``)."""
+
+SolverLike: TypeAlias = Newton | Analytic | str
+"""What a ``solver=`` argument takes: a solver object or a shorthand string."""
+
+SHORTHANDS: Final[dict[str, Callable[[], Solver]]] = {
+    "newton": Newton,
+    "analytic": Analytic,
+    "closed_form": ClosedForm,
+}
 
 
-def resolve(solver):
+def resolve(solver: SolverLike) -> Solver:
     """The solver object for a ``solver=`` argument: an instance, or a shorthand string."""
     if isinstance(solver, Newton | Analytic):
         return solver
@@ -135,17 +148,31 @@ def resolve(solver):
     )
 
 
-def name(solver):
+def name(solver: Solver) -> str:
     """A short label: ``"newton"``, ``"analytic"`` or ``"closed_form"``."""
     if isinstance(solver, Newton):
         return "newton"
     return "closed_form" if solver.corrections == 0 else "analytic"
 
 
-_UNSET = object()
+class _Unset(enum.Enum):
+    """The type of `_UNSET`: the default of an older keyword that was not given."""
+
+    UNSET = enum.auto()
+
+    def __repr__(self) -> str:
+        return "_UNSET"
 
 
-def resolve_legacy(solver, fidelity=_UNSET, rtol=_UNSET, max_steps=_UNSET):
+_UNSET: Final = _Unset.UNSET
+
+
+def resolve_legacy(
+    solver: SolverLike,
+    fidelity: str | None | _Unset = _UNSET,
+    rtol: float | None | _Unset = _UNSET,
+    max_steps: int | _Unset = _UNSET,
+) -> Solver:
     """[`resolve`][tripodjax.solvers.resolve], also honouring the older keywords ``fidelity=``, ``rtol=``, ``max_steps=``.
 
     ``fidelity`` is a shorthand string (as ``solver``; when given, even as

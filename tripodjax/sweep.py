@@ -11,10 +11,12 @@ then spans all hosts and each chunk is split across all of them.
 import collections.abc
 import functools
 import math
+from collections.abc import Sequence
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.typing import ArrayLike
 
 from tripodjax import progress as progress_meters
 from tripodjax import solvers
@@ -29,6 +31,7 @@ from tripodjax.friction import (
     DEFAULT_STROKE_WIDTH,
     GAF_MODELS,
     GREASE_A,
+    FrictionParams,
     _check_params,
     gaf_from_revolution,
 )
@@ -55,7 +58,7 @@ DEFAULT_CHUNK_POINTS = {"cpu": 2**18}
 DEFAULT_CHUNK_POINTS_ACCELERATOR = 2**22
 
 
-class SweepResult(dict):
+class SweepResult(dict[str, np.ndarray]):
     """The outputs of [`sweep`][tripodjax.sweep.sweep]: a dict name → NumPy array of length N, plus a status summary.
 
     Attributes:
@@ -64,10 +67,10 @@ class SweepResult(dict):
             output ``"result"`` or ``"converged"``, or ``throw=True``); else None.
     """
 
-    result_counts: dict | None = None
+    result_counts: dict[str, int] | None = None
 
 
-def count_results(codes):
+def count_results(codes: ArrayLike) -> dict[str, int]:
     """Layouts per [`RESULTS`][tripodjax.results.RESULTS] code: dict name → count (every code listed)."""
     codes = np.asarray(codes)
     return {code.name: int(np.count_nonzero(codes == code)) for code in RESULTS}
@@ -85,7 +88,7 @@ def _check_layouts(layouts):
     return shapes["R"][0]
 
 
-def _check_outputs(outputs, torque):
+def _check_outputs(outputs: object, torque: object) -> tuple[str, ...]:
     allowed = f"a sequence of names among {', '.join(OUTPUTS)}"
     if isinstance(outputs, str | bytes):
         raise TypeError(
@@ -133,23 +136,23 @@ def _evaluate_chunk(
 
 
 def sweep(
-    layouts,
-    n_theta=360,
-    solver="newton",
-    outputs=DEFAULT_OUTPUTS,
-    chunk_size=None,
+    layouts: Layout,
+    n_theta: int = 360,
+    solver: solvers.SolverLike = "newton",
+    outputs: Sequence[str] = DEFAULT_OUTPUTS,
+    chunk_size: int | None = None,
     *,
-    torque=None,
-    friction_params=GREASE_A,
-    gaf_model="stroke",
-    gaf_width=DEFAULT_STROKE_WIDTH,
-    devices=None,
-    progress=None,
-    throw=False,
-    fidelity=solvers._UNSET,
-    rtol=solvers._UNSET,
-    max_steps=solvers._UNSET,
-):
+    torque: ArrayLike | None = None,
+    friction_params: FrictionParams = GREASE_A,
+    gaf_model: str = "stroke",
+    gaf_width: float = DEFAULT_STROKE_WIDTH,
+    devices: Sequence[jax.Device] | None = None,
+    progress: bool | progress_meters.ProgressMeter | None = None,
+    throw: bool = False,
+    fidelity: str | None | solvers._Unset = solvers._UNSET,
+    rtol: float | None | solvers._Unset = solvers._UNSET,
+    max_steps: int | solvers._Unset = solvers._UNSET,
+) -> SweepResult:
     """Metrics of many layouts at once.
 
     Args:
@@ -216,7 +219,7 @@ def sweep(
         progress = False
     bar = progress_meters.resolve(progress).start(total=n, desc="sweep", unit="layouts")
     static = dict(n_theta=n_theta, solver=solver, outputs=computed, gaf_model=gaf_model)
-    pieces = {name: [] for name in computed}
+    pieces: dict[str, list[np.ndarray]] = {name: [] for name in computed}
     pending = None  # one chunk in flight while the next is dispatched (JAX runs asynchronously)
 
     def collect(done):
