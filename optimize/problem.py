@@ -191,6 +191,14 @@ def limits(structure, values):
     return out
 
 
+def fixed_design(values):
+    """Every design variable at its spec value, in spec units (γ0 in degrees)."""
+    return {
+        name: to_spec_units(name, values[section][key])
+        for name, (section, key, _, _) in VARIABLES.items()
+    }
+
+
 def to_spec_units(name, value):
     """A design variable's internal value in its spec unit (γ0: rad → deg)."""
     return math.degrees(value) if name == "gamma0_deg" else float(value)
@@ -309,15 +317,7 @@ def evaluate_catalogue(spec: Spec) -> tuple[list[dict], dict | None]:
     """
     from tripodjax import catalogue
 
-    fixed = {
-        "R": float(spec.values["design"]["R"]),
-        "d_roller": float(spec.values["design"]["d_roller"]),
-        "l": float(spec.values["layout"]["l"]),
-        "gamma0_deg": math.degrees(float(spec.values["layout"]["gamma0"])),
-        "conformity": float(spec.values["hertz"]["conformity"]),
-        "lam": float(spec.values["friction"]["lam"]),
-        "mu_slp": float(spec.values["friction"]["mu_slp"]),
-    }
+    fixed = fixed_design(spec.values)
     entries = []
     for family, table in (("GE", catalogue.GE), ("GI", catalogue.GI)):
         for size, row in table.items():

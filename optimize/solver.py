@@ -39,6 +39,7 @@ from tripodjax.optimize._compiled import call
 from tripodjax.optimize.problem import (
     bounds,
     constraint_names,
+    fixed_design,
     limits,
     objective_and_margins,
     to_spec_units,
@@ -354,20 +355,6 @@ def _design_dict(structure, values, x):
         if name in structure.free:
             design[name] = to_spec_units(name, x[structure.free.index(name)])
     return design
-
-
-def fixed_design(spec_values):
-    """Every design variable at its spec value (spec units)."""
-    v = spec_values
-    return {
-        "R": float(v["design"]["R"]),
-        "d_roller": float(v["design"]["d_roller"]),
-        "l": float(v["layout"]["l"]),
-        "gamma0_deg": math.degrees(float(v["layout"]["gamma0"])),
-        "conformity": float(v["hertz"]["conformity"]),
-        "lam": float(v["friction"]["lam"]),
-        "mu_slp": float(v["friction"]["mu_slp"]),
-    }
 
 
 def _result(structure, values, out):
