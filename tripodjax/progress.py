@@ -22,6 +22,7 @@ class ProgressMeter:
     """The interface: ``start`` returns a handle with ``update(n, **postfix)`` and ``close()``."""
 
     def start(self, total: int, desc: str, unit: str = "it") -> ProgressHandle:
+        """Begin a task of ``total`` units named ``desc``; returns its handle."""
         raise NotImplementedError
 
 
