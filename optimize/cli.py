@@ -114,13 +114,14 @@ def _main(argv):
         print(f"optimize-joint: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
     import jax
+    import numpy as np
 
     # The command's own choice: keep compiled executables for the next run.
     jax.config.update("jax_compilation_cache_dir", _cache_dir())
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
     from tripodjax.optimize import report
     from tripodjax.optimize._compiled import export_cache
-    from tripodjax.optimize.problem import evaluate, evaluate_catalogue
+    from tripodjax.optimize.problem import constraint_landscape, evaluate, evaluate_catalogue
     from tripodjax.optimize.sensitivity import sensitivities
     from tripodjax.optimize.solver import _with, run
 
@@ -136,29 +137,35 @@ def _main(argv):
         _with(spec.values, "objective", w_gaf_rms=w) for w in pareto_weights
     ]
     # Independent work runs in a second thread: XLA compiles outside the GIL, so on a cold
-    # cache the catalogue's and the sensitivities' programs compile beside the optimiser's.
+    # cache the catalogue's (and the sensitivities') program compiles beside the optimiser's.
     pool = ThreadPoolExecutor(max_workers=1)
     try:
         with export_cache(os.path.join(_cache_dir(), "exports")):
             catalogue_job = pool.submit(contextvars.copy_context().run, evaluate_catalogue, spec)
             results = run(spec, scenarios, progress)
             result, pareto = results[0], list(zip(pareto_weights, results[1:], strict=True))
-            full = None
+            # The catalogue compiled the program the sensitivities use: wait for it, not twice.
+            catalogue, choice = catalogue_job.result()
+            r_max = min(40.0, 0.2 * float(spec.values["layout"]["l"]))  # R/l ≤ 0.2
+            landscape = constraint_landscape(
+                spec, np.linspace(12.0, r_max, 28), np.linspace(15.0, 40.0, 28)
+            )
+            full_job = None
             if spec.structure.fidelity != "newton" or spec.structure.n_theta != 360:
                 reference = spec.replace_values(solver={"fidelity": "newton", "n_theta": 360})
                 design = {k: result.design[k] for k in spec.structure.free}
                 full_job = pool.submit(contextvars.copy_context().run, evaluate, reference, design)
             if result.feasible:
                 result.sensitivities = sensitivities(spec, result)
-            catalogue, choice = catalogue_job.result()
-            if spec.structure.fidelity != "newton" or spec.structure.n_theta != 360:
+            full = None
+            if full_job is not None:
                 full = {"solver": "newton", "n_theta": 360, **full_job.result()}
     finally:
         pool.shutdown(wait=False, cancel_futures=True)  # Ctrl-C does not wait for a compile
     figures = {
         "convergence.png": report.figure_convergence(result),
         "constraint_margins.png": report.figure_margins(result),
-        "catalogue.png": report.figure_catalogue(result, catalogue, choice),
+        "catalogue.png": report.figure_catalogue(result, catalogue, choice, landscape),
     }
     if pareto:
         figures["pareto_front.png"] = report.figure_pareto(result, pareto)

@@ -305,6 +305,26 @@ def evaluate(spec: Spec, design: Mapping[str, float]) -> dict:
     }
 
 
+def _evaluate_sizes(spec, sizes):
+    """(objective, margins, quantities) for (R, d) pairs, every other variable at its spec value.
+
+    One batch of the program the sensitivities use; the bounds of R and d do not apply.
+    """
+    from tripodjax.optimize.solver import SAFETY, evaluate_points
+
+    spec = _unbounded(spec)
+    structure = spec.structure
+    fixed = fixed_design(spec.values)
+    rows = [
+        [from_spec_units(k, dict(fixed, R=R, d_roller=d)[k]) for k in structure.free]
+        for R, d in sizes
+    ]
+    batch = jax.tree_util.tree_map(lambda a: np.stack([np.asarray(a)] * len(rows)), spec.values)
+    f, c, _, _, q, _ = evaluate_points(structure, batch, np.asarray(rows, float))
+    offset = SAFETY * float(spec.values["solver"]["tolerance"])
+    return f, c + offset, q, constraint_names(structure)
+
+
 def evaluate_catalogue(spec: Spec) -> tuple[list[dict], dict | None]:
     """Every GE and GI catalogue size (seed §1.1.2) under the spec, and the best feasible one.
 
@@ -318,46 +338,49 @@ def evaluate_catalogue(spec: Spec) -> tuple[list[dict], dict | None]:
     from tripodjax import catalogue
 
     fixed = fixed_design(spec.values)
-    entries = []
+    sizes, entries = [], []
     for family, table in (("GE", catalogue.GE), ("GI", catalogue.GI)):
         for size, row in table.items():
-            design = {k: fixed[k] for k in spec.structure.free} | {
-                "R": row["R"],
-                "d_roller": row["d"],
-            }
+            entry = {"family": family, "size": size, "R_mm": row["R"], "d_roller_mm": row["d"]}
+            entries.append(entry)
             try:
-                out = evaluate(_unbounded(spec), design)
+                check_layout_domain(R=row["R"], l=fixed["l"], names={"R": f"{family} {size} R"})
             except ValueError as error:  # outside the halfshaft domain (R/l > 0.2)
-                entries.append(
-                    {
-                        "family": family,
-                        "size": size,
-                        "R_mm": row["R"],
-                        "d_roller_mm": row["d"],
-                        "feasible": False,
-                        "objective": None,
-                        "margins": {},
-                        "quantities": {},
-                        "note": str(error),
-                    }
+                entry.update(
+                    feasible=False, objective=None, margins={}, quantities={}, note=str(error)
                 )
                 continue
-            margins = {k: v for k, v in out["constraints"].items() if not k.endswith("_bound")}
-            entries.append(
-                {
-                    "family": family,
-                    "size": size,
-                    "R_mm": row["R"],
-                    "d_roller_mm": row["d"],
-                    "feasible": bool(all(m >= 0 for m in margins.values())),
-                    "objective": out["objective"],
-                    "margins": margins,
-                    "quantities": out["quantities"],
-                }
-            )
+            sizes.append(entry)
+    f, c, q, names = _evaluate_sizes(spec, [(e["R_mm"], e["d_roller_mm"]) for e in sizes])
+    for i, entry in enumerate(sizes):
+        margins = {n: float(m) for n, m in zip(names, c[i], strict=True)}
+        entry.update(
+            feasible=bool(all(m >= 0 for m in margins.values())),
+            objective=float(f[i]),
+            margins=margins,
+            quantities={k: float(v[i]) for k, v in q.items()},
+        )
     feasible = [e for e in entries if e["feasible"] and math.isfinite(e["objective"])]
     choice = min(feasible, key=lambda e: e["objective"]) if feasible else None
     return entries, choice
+
+
+def constraint_landscape(spec: Spec, R: np.ndarray, d: np.ndarray) -> dict:
+    """Objective and margins over the (R, d) grid ``R × d`` [mm], the rest at its spec values.
+
+    Returns ``{"R", "d", "objective" (len R × len d), "margins": {name: array}}``, for
+    plots of the constraint landscape (the catalogue figure of the report).
+    """
+    R, d = np.asarray(R, float), np.asarray(d, float)
+    RR, DD = np.meshgrid(R, d, indexing="ij")
+    f, c, _, names = _evaluate_sizes(spec, list(zip(RR.ravel(), DD.ravel(), strict=True)))
+    shape = RR.shape
+    return {
+        "R": R,
+        "d": d,
+        "objective": f.reshape(shape),
+        "margins": {n: c[:, i].reshape(shape) for i, n in enumerate(names)},
+    }
 
 
 def _unbounded(spec):

@@ -1,5 +1,8 @@
 """The report of an optimisation: strict JSON and PNG plots, written atomically.
 
+The figures use fixed margins rather than ``tight_layout`` (which cost as much as the
+rest of a warm run together).
+
 Plots draw on ``matplotlib.figure.Figure`` objects (no pyplot state, no backend
 switch): importing this module changes nothing in the process.
 """
@@ -9,6 +12,8 @@ import math
 import os
 import platform
 import tempfile
+
+import numpy as np
 
 from tripodjax.optimize.spec import QUANTITIES, REPORT_KEYS
 
@@ -132,7 +137,7 @@ def figure_convergence(result):
     ax1.set(title="KKT residual", xlabel="outer iteration [–]", ylabel="KKT residual [–]")
     for ax in (ax0, ax1):
         ax.grid(alpha=0.3, which="both")
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.14, top=0.9, wspace=0.25)
     return fig
 
 
@@ -158,7 +163,7 @@ def figure_margins(result):
         xlabel="margin ln(value/limit) [–]",
     )
     ax.grid(alpha=0.3, axis="x")
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.2, right=0.95, bottom=0.14, top=0.9)
     return fig
 
 
@@ -193,7 +198,7 @@ def figure_pareto(result, pareto):
     )
     ax.grid(alpha=0.3)
     ax.legend()
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.12, right=0.97, bottom=0.11, top=0.93)
     return fig
 
 
@@ -219,14 +224,23 @@ def figure_tornado(result, count=12):
     )
     ax.grid(alpha=0.3, axis="x")
     ax.legend(fontsize=8)
-    fig.tight_layout()
+    fig.subplots_adjust(
+        left=0.3, right=0.97, bottom=0.6 / fig.get_figheight(), top=1 - 0.45 / fig.get_figheight()
+    )
     return fig
 
 
-def figure_catalogue(result, catalogue, choice):
-    """Catalogue sizes on the (R, d) plane, feasible or not, with the ad hoc optimum."""
+def figure_catalogue(result, catalogue, choice, landscape=None):
+    """Catalogue sizes on the (R, d) plane over the constraint landscape, with the ad hoc optimum."""
     fig = _figure(figsize=(7, 5.5))
     ax = fig.subplots()
+    if landscape is not None:
+        R, d = landscape["R"], landscape["d"]
+        worst = np.min(np.stack(list(landscape["margins"].values())), axis=0)
+        ax.contourf(R, d, (worst < 0).T.astype(float), levels=[0.5, 1.5], colors="0.85")
+        for k, (name, margin) in enumerate(landscape["margins"].items()):
+            ax.contour(R, d, margin.T, levels=[0.0], colors=f"C{k % 10}", linewidths=1.2)
+            ax.plot([], [], color=f"C{k % 10}", lw=1.2, label=f"{name} = 0")
     for family, marker in (("GE", "s"), ("GI", "^")):
         for feasible, color in ((True, "C2"), (False, "C3")):
             pts = [e for e in catalogue if e["family"] == family and e["feasible"] == feasible]
@@ -257,13 +271,13 @@ def figure_catalogue(result, catalogue, choice):
         )
     ax.plot([result.design["R"]], [result.design["d_roller"]], "r*", ms=15, label="ad hoc optimum")
     ax.set(
-        title="catalogue sizes and the ad hoc design",
+        title="catalogue sizes over the constraint landscape (grey: infeasible)",
         xlabel="pitch-circle radius R [mm]",
         ylabel="roller diameter d [mm]",
     )
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.11, right=0.97, bottom=0.1, top=0.94)
     return fig
 
 

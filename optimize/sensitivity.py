@@ -17,33 +17,19 @@ near zero, or inactive with a margin near zero — makes the derivative one-side
 it is named in ``near_switch`` instead of being trusted silently.
 """
 
-import functools
 import math
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
-from tripodjax.optimize._compiled import call
 from tripodjax.optimize.problem import bounds, constraint_names
-from tripodjax.optimize.solver import BOUND_TOLERANCE, Result, _evaluation
+from tripodjax.optimize.solver import BOUND_TOLERANCE, Result, evaluate_points
 from tripodjax.optimize.spec import Spec
 
 ACTIVE_MULTIPLIER = 1e-6  # λ above this: the constraint is active
 SWITCH_MULTIPLIER = 1e-4  # active with λ below this: about to leave the active set
 SWITCH_MARGIN = 1e-3  # inactive with a margin below this: about to enter it
 EXCLUDED = {("solver", "tolerance")}
-
-
-@functools.partial(jax.jit, static_argnums=0)
-def _kkt_pieces(structure, values, x):
-    """(f, c − offset, ∇f, J) at each row of a batch of (values, x): forward mode, exact in x."""
-
-    def one(values, x):
-        f, c, grad_f, jac, _, _ = _evaluation(structure, values)[3](x)
-        return f, c, grad_f, jac
-
-    return jax.vmap(one)(values, x)
 
 
 def _ravel(tree):
@@ -96,11 +82,8 @@ def _derivatives(structure, values, x, lam, free_mask, active_mask):
     those exact first derivatives (a second-order forward pass through the implicit
     solve takes minutes to compile, this one seconds).
     """
-    with jax.enable_x64(True):  # float64, scoped to this call
-        batch, xs, hx, hp, params, size, unravel = _perturbations(values, x)
-        f, c, grad_f, jac = (
-            np.asarray(a) for a in call(_kkt_pieces, structure, batch, jnp.asarray(xs))
-        )
+    batch, xs, hx, hp, params, size, unravel = _perturbations(values, x)
+    f, c, grad_f, jac, _, _ = evaluate_points(structure, batch, xs)
     n, m = x.size, lam.size
     L = f - c @ lam
     grad_L = grad_f - np.einsum("bmn,m->bn", jac, lam)
@@ -149,7 +132,8 @@ def sensitivities(spec: Spec, result: Result) -> dict:
         "elasticities": {…same keys…}, "active": [...], "near_switch": [...],
         "condition_number": float}``: per unit of the spec's own unit (per degree for
         ``*_deg`` keys; list entries as ``key[i]``); the free variables in spec units.
-        Elasticities are (p / y)·dy/dp.
+        Elasticities are (p / y)·dy/dp; for the conformity Ψ, p is the clearance Ψ − 1
+        (a relative change of Ψ itself would read as a huge number).
     """
     structure, values = spec.structure, spec.values
     names = constraint_names(structure)
@@ -192,6 +176,8 @@ def sensitivities(spec: Spec, result: Result) -> dict:
                     d = float(dx[section][key][(v,) + idx]) * factor
                     row[variable] = d * (180.0 / math.pi if variable == "gamma0_deg" else 1.0)
                 p_spec = math.degrees(float(value[idx])) if factor != 1.0 else float(value[idx])
+                if label == "hertz.conformity":  # per relative change of the clearance Ψ − 1
+                    p_spec -= 1.0
                 derivatives[label] = row
                 elasticities[label] = {
                     k: (p_spec * d / y if y != 0 else float("nan"))

@@ -256,6 +256,47 @@ def solve_problem(structure, values, z0):
     )
 
 
+POINTS_BLOCK = 128  # evaluate_points pads its rows to a multiple of this: one shape, one program
+
+
+@functools.partial(jax.jit, static_argnums=0)
+def _evaluate_points(structure, values, x):
+    def one(values, x):
+        return _evaluation(structure, values)[3](x)
+
+    return jax.vmap(one)(values, x)
+
+
+def evaluate_points(structure, values, x):
+    """(f, c − offset, ∇f, J, quantities, codes) at each row of a batch of (values, x).
+
+    ``values`` has a leading row axis on every leaf, ``x`` is (rows, free variables) in
+    internal units; forward mode, exact in x. The rows go through in blocks of
+    ``POINTS_BLOCK`` (the last one padded), so the sensitivities, the catalogue and the
+    constraint landscape share one compiled program.
+    """
+    rows = x.shape[0]
+    padded = -(-rows // POINTS_BLOCK) * POINTS_BLOCK
+
+    def pad(a):
+        a = np.asarray(a)
+        return np.concatenate([a, np.repeat(a[:1], padded - rows, axis=0)])
+
+    values, x = jax.tree_util.tree_map(pad, values), pad(x)
+    blocks = []
+    with jax.enable_x64(True):  # float64, scoped to this call
+        for start in range(0, padded, POINTS_BLOCK):
+            block = slice(start, start + POINTS_BLOCK)
+            out = call(
+                _evaluate_points,
+                structure,
+                jax.tree_util.tree_map(lambda a, b=block: a[b], values),
+                x[block],
+            )
+            blocks.append(jax.tree_util.tree_map(np.asarray, out))
+    return jax.tree_util.tree_map(lambda *a: np.concatenate(a)[:rows], *blocks)
+
+
 @functools.partial(jax.jit, static_argnums=0)
 def solve_batch(structure, values, z0):
     """Every problem of a flat batch: ``values`` and ``z0`` carry a leading batch axis."""

@@ -288,3 +288,13 @@ def test_docstring_examples_run():
     for module in (problem, solver):
         failures, tried = doctest.testmod(module, optionflags=doctest.ELLIPSIS)
         assert tried > 0 and failures == 0, module.__name__
+
+
+def test_constraint_landscape_matches_evaluate():
+    from tripodjax.optimize.problem import constraint_landscape
+
+    land = constraint_landscape(SPEC, [18.0, 24.0], [25.0, 31.0])
+    out = optimize.evaluate(SPEC, {"R": 24.0, "d_roller": 25.0})
+    assert land["objective"][1, 0] == pytest.approx(out["objective"], rel=1e-12)
+    for name, margins in land["margins"].items():
+        assert margins[1, 0] == pytest.approx(out["constraints"][name], rel=1e-10, abs=1e-13)
