@@ -89,14 +89,14 @@ class _ExportCache:
         try:
             data = (self.directory / f"{key}.jaxexport").read_bytes()
             return jax.export.deserialize(bytearray(data))
-        except (OSError, ImportError, ValueError):
+        except Exception:  # absent, unreadable, corrupt or from another jaxlib: export again
             return None
 
     def _export(self, key, jitted, static, args):
         try:
             exported = jax.export.export(jitted)(static, *args)
             data = exported.serialize()
-        except ImportError:  # serialization needs the flatbuffers package
+        except Exception:  # e.g. no flatbuffers package: call the function directly
             return False
         try:
             self.directory.mkdir(parents=True, exist_ok=True)

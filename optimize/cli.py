@@ -86,6 +86,23 @@ def _cache_dir():
     )
 
 
+def _landscape_axes(spec, catalogue):
+    """R and d axes [mm] covering the catalogue sizes and the bounds, within R/l ≤ 0.2."""
+    import numpy as np
+
+    bounds = spec.resolved["bounds"]
+
+    def span(key, sizes):
+        given = bounds.get(key)
+        return sizes + (list(given) if isinstance(given, list) else [])
+
+    R = span("R", [e["R_mm"] for e in catalogue])
+    d = span("d_roller", [e["d_roller_mm"] for e in catalogue])
+    r_max = min(1.05 * max(R), 0.2 * float(spec.values["layout"]["l"]))
+    r_min = min(0.95 * min(R), 0.5 * r_max)
+    return np.linspace(r_min, r_max, 28), np.linspace(0.95 * min(d), 1.05 * max(d), 28)
+
+
 def main(argv=None):
     try:
         return _main(argv)
@@ -114,7 +131,6 @@ def _main(argv):
         print(f"optimize-joint: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
     import jax
-    import numpy as np
 
     # The command's own choice: keep compiled executables for the next run.
     jax.config.update("jax_compilation_cache_dir", _cache_dir())
@@ -146,16 +162,13 @@ def _main(argv):
             result, pareto = results[0], list(zip(pareto_weights, results[1:], strict=True))
             # The catalogue compiled the program the sensitivities use: wait for it, not twice.
             catalogue, choice = catalogue_job.result()
-            r_max = min(40.0, 0.2 * float(spec.values["layout"]["l"]))  # R/l ≤ 0.2
-            landscape = constraint_landscape(
-                spec, np.linspace(12.0, r_max, 28), np.linspace(15.0, 40.0, 28)
-            )
+            landscape = constraint_landscape(spec, *_landscape_axes(spec, catalogue))
             full_job = None
             if spec.structure.fidelity != "newton" or spec.structure.n_theta != 360:
                 reference = spec.replace_values(solver={"fidelity": "newton", "n_theta": 360})
                 design = {k: result.design[k] for k in spec.structure.free}
                 full_job = pool.submit(contextvars.copy_context().run, evaluate, reference, design)
-            if result.feasible:
+            if result.converged:  # derivatives of an optimum, not of an unfinished point
                 result.sensitivities = sensitivities(spec, result)
             full = None
             if full_job is not None:
@@ -204,7 +217,11 @@ def _main(argv):
                 "the KKT residual is above solver.tolerance within solver.max_outer iterations"
             )
         if not result.halfshaft_converged:
-            reasons.append(f"an inner solve at the design returned {result.result}")
+            reasons.append(
+                f"the halfshaft or GAF evaluation at the design returned {result.result}"
+            )
+        if not result.hertz_converged:
+            reasons.append(f"the Hertz ellipse (κ) solve at the design returned {result.result}")
         message, code = f"not converged: {'; '.join(reasons)}", EXIT_NOT_CONVERGED
     body["message"] = message
     try:

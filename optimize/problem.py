@@ -60,6 +60,12 @@ def bounds(structure, values):
     return lower, upper
 
 
+def _bounds_np(structure, values):
+    """(lower, upper) of the free variables as float64 NumPy arrays (internal units)."""
+    b = values["bounds"]
+    return tuple(np.array([float(np.asarray(b[k])[i]) for k in structure.free]) for i in (0, 1))
+
+
 def full_design(structure, values, x):
     """Every design variable (internal names and units) with the free ones taken from x."""
     design = {name: values[section][key] for name, (section, key, _, _) in VARIABLES.items()}
@@ -292,7 +298,7 @@ def evaluate(spec: Spec, design: Mapping[str, float]) -> dict:
         objective, margins = float(objective), [float(m) for m in margins]
         q = {k: float(v) for k, v in q.items()}
     result = dict(zip(constraint_names(structure), margins, strict=True))
-    lower, upper = (np.asarray(a) for a in bounds(structure, values))
+    lower, upper = _bounds_np(structure, values)
     span = upper - lower
     for i, name in enumerate(structure.free):
         result[f"{name}_lower_bound"] = float((x[i] - lower[i]) / span[i])

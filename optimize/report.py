@@ -84,17 +84,19 @@ def report_dict(
     if full_fidelity is not None:
         report["full_fidelity"] = full_fidelity
     if result.sensitivities is not None:
-        report["sensitivities"] = result.sensitivities["derivatives"]
-        report["sensitivity_notes"] = {
-            k: result.sensitivities[k]
-            for k in ("active", "on_bound", "near_switch", "condition_number")
-        }
-        if result.sensitivities["near_switch"]:
-            report["sensitivity_notes"]["warning"] = (
+        sens = result.sensitivities
+        notes = {k: sens[k] for k in ("active", "on_bound", "near_switch", "condition_number")}
+        report["sensitivities"] = sens["derivatives"]
+        if "unavailable" in sens:
+            notes["unavailable"] = sens["unavailable"]
+        if sens["near_switch"]:  # one-sided derivatives are not printed as if they were two-sided
+            report["sensitivities"] = {}
+            notes["unavailable"] = (
                 "constraints about to switch (multiplier or margin near zero): "
-                + ", ".join(result.sensitivities["near_switch"])
-                + "; the derivatives hold on one side only"
+                + ", ".join(sens["near_switch"])
+                + "; a derivative would hold on one side only, so none is given"
             )
+        report["sensitivity_notes"] = notes
     if catalogue is not None:
         report["catalogue"] = catalogue
         report["catalogue_choice"] = choice

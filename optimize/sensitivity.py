@@ -22,14 +22,14 @@ import math
 import jax
 import numpy as np
 
-from tripodjax.optimize.problem import bounds, constraint_names
+from tripodjax.optimize.problem import _bounds_np, constraint_names
 from tripodjax.optimize.solver import BOUND_TOLERANCE, Result, evaluate_points
 from tripodjax.optimize.spec import Spec
 
 ACTIVE_MULTIPLIER = 1e-6  # λ above this: the constraint is active
 SWITCH_MULTIPLIER = 1e-4  # active with λ below this: about to leave the active set
 SWITCH_MARGIN = 1e-3  # inactive with a margin below this: about to enter it
-EXCLUDED = {("solver", "tolerance")}
+MAX_CONDITION = 1e12  # a KKT matrix worse than this is singular: a free variable has no effect
 
 
 def _ravel(tree):
@@ -105,8 +105,11 @@ def _derivatives(structure, values, x, lam, free_mask, active_mask):
             [am[:, None] * J * fm[None, :], np.diag(1.0 - am)],
         ]
     )
+    cond = float(np.linalg.cond(K))
+    if not np.isfinite(cond) or cond > MAX_CONDITION:
+        return None, None, cond
     du = -np.linalg.solve(K, np.concatenate([fm, am])[:, None] * Gp)
-    return unravel(dL), unravel(du[:n]), float(np.linalg.cond(K))
+    return unravel(dL), unravel(du[:n]), cond
 
 
 # Internal value path → (spec key, factor from per-internal-unit to per-spec-unit).
@@ -130,7 +133,8 @@ def sensitivities(spec: Spec, result: Result) -> dict:
     Returns:
         ``{"derivatives": {"<section>.<key>": {"objective": …, "<variable>": …}},
         "elasticities": {…same keys…}, "active": [...], "near_switch": [...],
-        "condition_number": float}``: per unit of the spec's own unit (per degree for
+        "condition_number": float}``, and ``"unavailable"`` (a sentence) with empty
+        derivatives when the KKT matrix is singular: per unit of the spec's own unit (per degree for
         ``*_deg`` keys; list entries as ``key[i]``); the free variables in spec units.
         Elasticities are (p / y)·dy/dp; for the conformity Ψ, p is the clearance Ψ − 1
         (a relative change of Ψ itself would read as a huge number).
@@ -140,7 +144,7 @@ def sensitivities(spec: Spec, result: Result) -> dict:
     lam = np.array([result.multipliers[n] for n in names])
     margins = np.array([result.constraints[n]["margin"] for n in names])
     x = np.asarray(result.x)
-    lower, upper = (np.asarray(a) for a in bounds(structure, values))
+    lower, upper = _bounds_np(structure, values)
     width = upper - lower
     on_bound = (x - lower <= 10 * BOUND_TOLERANCE * width) | (
         upper - x <= 10 * BOUND_TOLERANCE * width
@@ -152,14 +156,26 @@ def sensitivities(spec: Spec, result: Result) -> dict:
         if (a and lm < SWITCH_MULTIPLIER) or (not a and mg < SWITCH_MARGIN)
     ]
     dF, dx, cond = _derivatives(structure, values, x, lam, ~on_bound, active)
+    notes = {
+        "active": [n for n, a in zip(names, active, strict=True) if a],
+        "on_bound": [v for v, b in zip(structure.free, on_bound, strict=True) if b],
+        "near_switch": near_switch,
+        "condition_number": cond,
+    }
+    if dF is None:  # no derivative exists: say so instead of printing numbers
+        unused = [v for v, b in zip(structure.free, on_bound, strict=True) if not b]
+        notes["unavailable"] = (
+            f"the KKT matrix is singular (condition number {cond:.3g}): one of the free "
+            f"variables off their bounds ({', '.join(unused)}) has no effect on the objective or "
+            "the active constraints"
+        )
+        return {"derivatives": {}, "elasticities": {}, **notes}
     derivatives, elasticities = {}, {}
     optimum = {v: result.design[v] for v in structure.free}
     for section, entries in values.items():
         if section in ("bounds", "solver"):
             continue
         for key, value in entries.items():
-            if (section, key) in EXCLUDED:
-                continue
             if section == "design" and key in structure.free:
                 continue
             if section == "layout" and {"l": "l", "gamma0": "gamma0_deg"}[key] in structure.free:
@@ -186,11 +202,4 @@ def sensitivities(spec: Spec, result: Result) -> dict:
                         for k, d in row.items()
                     )
                 }
-    return {
-        "derivatives": derivatives,
-        "elasticities": elasticities,
-        "active": [n for n, a in zip(names, active, strict=True) if a],
-        "on_bound": [v for v, b in zip(structure.free, on_bound, strict=True) if b],
-        "near_switch": near_switch,
-        "condition_number": cond,
-    }
+    return {"derivatives": derivatives, "elasticities": elasticities, **notes}

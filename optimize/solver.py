@@ -390,7 +390,7 @@ def _choose(out, tolerance):
     return int(np.argmin(score))
 
 
-def _design_dict(structure, values, x):
+def _design_dict(structure, x):
     design = {}
     for name in REPORT_KEYS:
         if name in structure.free:
@@ -414,7 +414,7 @@ def _result(structure, values, out):
             "unit": unit,
             "margin": float(margin),
         }
-    design = fixed_design(values) | _design_dict(structure, values, out["x"][best])
+    design = fixed_design(values) | _design_dict(structure, out["x"][best])
     halfshaft_code, hertz_code = (RESULTS(int(c)) for c in out["code"][best])
     code = max(halfshaft_code, hertz_code)
     kkt = float(out["kkt"][best])
@@ -426,7 +426,7 @@ def _result(structure, values, out):
     for s in range(out["x"].shape[0]):
         starts.append(
             {
-                "design": _design_dict(structure, values, out["x"][s]),
+                "design": _design_dict(structure, out["x"][s]),
                 "objective": float(out["objective"][s]),
                 "kkt_residual": float(out["kkt"][s]),
                 "feasible": bool(np.min(out["margins"][s]) >= -tolerance),

@@ -234,14 +234,10 @@ class Spec:
     def replace_values(self, **sections: dict) -> "Spec":
         """A copy with some numbers changed, e.g. ``spec.replace_values(loads={"M_max": 1200.0})``.
 
-        Checked like the file: the new numbers go through the same rules.
+        Checked like the file: an unknown section or key is an error, and the new numbers go
+        through the same rules.
         """
-        table = copy.deepcopy(self.resolved)
-        for section, changes in sections.items():
-            node = table.setdefault(section, {})
-            for key, value in changes.items():
-                node[key] = value
-        return _check(table)
+        return _check(_merge(self.resolved, _legacy(copy.deepcopy(sections))))
 
 
 jax.tree_util.register_pytree_node(Spec, _flatten_spec, _unflatten_spec)

@@ -7,7 +7,6 @@ exception, never a multi-line message. The command turns a SpecError into exit 2
 test_optimize_cli.py), so this covers what the CLI would print for each case.
 """
 
-import json
 import math
 import tomllib
 
@@ -57,7 +56,11 @@ def _toml_value(value):
     if isinstance(value, int):
         return str(value)
     if isinstance(value, str):
-        return json.dumps(value, ensure_ascii=False)
+        escaped = (
+            f"\\u{ord(c):04x}" if ord(c) < 0x20 or ord(c) == 0x7F or c in '"\\' else c
+            for c in value
+        )
+        return '"' + "".join(escaped) + '"'
     if isinstance(value, list):
         return "[" + ", ".join(_toml_value(v) for v in value) + "]"
     raise TypeError(value)

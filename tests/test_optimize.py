@@ -298,3 +298,24 @@ def test_constraint_landscape_matches_evaluate():
     assert land["objective"][1, 0] == pytest.approx(out["objective"], rel=1e-12)
     for name, margins in land["margins"].items():
         assert margins[1, 0] == pytest.approx(out["constraints"][name], rel=1e-10, abs=1e-13)
+
+
+def test_sensitivities_say_so_when_no_derivative_exists():
+    # λ free but without effect (no GAF term): the KKT matrix is singular.
+    spec = optimize.parse_spec("[objective]\nw_gaf_rms = 0.0\n[bounds]\nlam = [0.001, 0.01]")
+    result = optimize.solve(spec, progress=False)
+    sens = sensitivities(spec, result)
+    assert sens["derivatives"] == {} and "singular" in sens["unavailable"]
+
+
+def test_replace_values_rejects_unknown_keys():
+    with pytest.raises(optimize.SpecError, match="loads.Mmax"):
+        SPEC.replace_values(loads={"Mmax": 1200.0})
+    with pytest.raises(optimize.SpecError, match="unknown key load"):
+        SPEC.replace_values(load={"M_max": 1200.0})
+
+
+def test_evaluate_bound_margins_are_exact_on_the_bound():
+    spec = optimize.parse_spec("[bounds]\ngamma0_deg = [18.0, 25.0]")
+    out = optimize.evaluate(spec, {"R": 21.0, "d_roller": 28.0, "gamma0_deg": 18.0})
+    assert out["constraints"]["gamma0_deg_lower_bound"] == 0.0
