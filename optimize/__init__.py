@@ -11,7 +11,7 @@
 - [`evaluate_catalogue`][tripodjax.optimize.evaluate_catalogue] — the GE/GI sizes under the spec.
 """
 
-from tripodjax.optimize.problem import evaluate, evaluate_catalogue
+from tripodjax.optimize.problem import constraint_landscape, evaluate, evaluate_catalogue
 from tripodjax.optimize.sensitivity import sensitivities
 from tripodjax.optimize.solver import Result, pareto_front, solve, solve_family
 from tripodjax.optimize.spec import (
@@ -31,6 +31,7 @@ __all__ = [
     "Result",
     "Spec",
     "SpecError",
+    "constraint_landscape",
     "evaluate",
     "evaluate_catalogue",
     "load_spec",
