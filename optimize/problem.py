@@ -52,18 +52,16 @@ def constraint_names(structure):
     return ("static_capacity", "life") + tuple(name for name, _, _ in structure.constraints)
 
 
-def bounds(structure, values):
-    """(lower, upper) arrays of the free variables, internal units."""
+def bounds(structure, values, xp=jnp):
+    """(lower, upper) arrays of the free variables, internal units.
+
+    ``xp=np`` for concrete float64 values outside ``jit`` (jnp would round them to float32
+    unless x64 is on).
+    """
     b = values["bounds"]
-    lower = jnp.stack([jnp.asarray(b[k])[..., 0] for k in structure.free], axis=-1)
-    upper = jnp.stack([jnp.asarray(b[k])[..., 1] for k in structure.free], axis=-1)
+    lower = xp.stack([xp.asarray(b[k])[..., 0] for k in structure.free], axis=-1)
+    upper = xp.stack([xp.asarray(b[k])[..., 1] for k in structure.free], axis=-1)
     return lower, upper
-
-
-def _bounds_np(structure, values):
-    """(lower, upper) of the free variables as float64 NumPy arrays (internal units)."""
-    b = values["bounds"]
-    return tuple(np.array([float(np.asarray(b[k])[i]) for k in structure.free]) for i in (0, 1))
 
 
 def full_design(structure, values, x):
@@ -298,7 +296,7 @@ def evaluate(spec: Spec, design: Mapping[str, float]) -> dict:
         objective, margins = float(objective), [float(m) for m in margins]
         q = {k: float(v) for k, v in q.items()}
     result = dict(zip(constraint_names(structure), margins, strict=True))
-    lower, upper = _bounds_np(structure, values)
+    lower, upper = bounds(structure, values, np)
     span = upper - lower
     for i, name in enumerate(structure.free):
         result[f"{name}_lower_bound"] = float((x[i] - lower[i]) / span[i])

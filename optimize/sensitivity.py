@@ -22,7 +22,7 @@ import math
 import jax
 import numpy as np
 
-from tripodjax.optimize.problem import _bounds_np, constraint_names
+from tripodjax.optimize.problem import bounds, constraint_names
 from tripodjax.optimize.solver import BOUND_TOLERANCE, Result, evaluate_points
 from tripodjax.optimize.spec import Spec
 
@@ -144,7 +144,7 @@ def sensitivities(spec: Spec, result: Result) -> dict:
     lam = np.array([result.multipliers[n] for n in names])
     margins = np.array([result.constraints[n]["margin"] for n in names])
     x = np.asarray(result.x)
-    lower, upper = _bounds_np(structure, values)
+    lower, upper = bounds(structure, values, np)
     width = upper - lower
     on_bound = (x - lower <= 10 * BOUND_TOLERANCE * width) | (
         upper - x <= 10 * BOUND_TOLERANCE * width

@@ -250,10 +250,6 @@ def _is_number(value):
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
-def _fmt(value):
-    return repr(value) if not isinstance(value, float) else f"{value!r}"
-
-
 def _number(table, section, key, low=None, high=None, *, low_open=False, unit=""):
     """A finite number in [low, high] (low excluded when low_open)."""
     where = f"{section}.{key}"
@@ -274,7 +270,7 @@ def _in_range(where, value, low, high, low_open, unit):
         if high is not None:
             parts.append(f"≤ {high:g}{unit}")
         allowed = "a finite number " + " and ".join(parts) if parts else "a finite number"
-        raise SpecError(f"{where} = {_fmt(value)} is not allowed: {allowed}")
+        raise SpecError(f"{where} = {value!r} is not allowed: {allowed}")
     return value
 
 

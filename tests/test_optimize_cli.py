@@ -114,13 +114,10 @@ def test_cli_bad_files_and_out_exit_2_before_computing(tmp_path):
         (("--out", ""), "--out"),
         (("--out",), "--out"),
     ):
-        start = time.perf_counter()
         result = run_cli(*args)
         assert result.returncode == 2, (args, result.stderr)
         assert len(result.stderr.strip().splitlines()) == 1 and fragment in result.stderr
-        assert (
-            time.perf_counter() - start < 60
-        )  # found before any optimisation (not a timing claim)
+        assert not (tmp_path / "o" / "report.json").exists()  # stopped before any optimisation
 
 
 def test_cli_infeasible_spec_says_so_with_a_strict_report(tmp_path):
