@@ -182,6 +182,14 @@ def test_newton_iterations_stay_few_over_the_domain():
         (lambda: Newton(max_steps=True), TypeError, "max_steps = True is not allowed"),
         (lambda: Analytic(corrections=-1), ValueError, "corrections = -1 is outside"),
         (lambda: Analytic(validity=0.0), ValueError, "validity = 0.0 is outside"),
+        (
+            lambda: Analytic(nodes=7),
+            ValueError,
+            "nodes = 7 is not allowed; allowed: None or an even",
+        ),
+        (lambda: Analytic(nodes=2), ValueError, "nodes = 2 is outside the allowed range"),
+        (lambda: Analytic(nodes=62), ValueError, "4 ≤ nodes ≤ 60"),
+        (lambda: Analytic(nodes=8.0), TypeError, "nodes = 8.0 is not allowed"),
         (lambda: solvers.resolve("exact"), ValueError, "solver = 'exact' is not allowed"),
         (lambda: solvers.resolve(3), TypeError, "solver = 3 is not allowed"),
     ],
@@ -198,7 +206,7 @@ def test_solver_objects_are_hashable_and_shorthands_resolve_to_defaults():
     )
     assert solvers.resolve("analytic") == Analytic()
     assert solvers.resolve("closed_form") == Analytic(
-        corrections=0, validity=solvers.ClosedForm().validity
+        corrections=0, validity=solvers.ClosedForm().validity, nodes=None
     )
     a = solve_halfshaft(seed_case("N"), THETA, Newton(rtol=1e-10, max_steps=30))
     b = solve_halfshaft(seed_case("N"), THETA)

@@ -13,9 +13,9 @@ import pytest
 
 from tripodjax import Layout, friction, kinematic_metrics, sweep
 from tripodjax.bench import domain_layouts, numpy_newton_metrics, random_layouts
-from tripodjax.halfshaft import analytic_halfshaft, solve_halfshaft
+from tripodjax.halfshaft import analytic_halfshaft, solve_halfshaft, trigonometric_interpolation
 from tripodjax.results import RESULTS
-from tripodjax.solvers import Newton, SolverError
+from tripodjax.solvers import Analytic, Newton, SolverError
 
 
 def layouts(n, seed=0, dtype=np.float64):
@@ -74,20 +74,67 @@ def test_newton_controls_are_passed_through_and_counted():
         sweep(batch, solver=Newton(max_steps=1), outputs=("irregularity",), throw=True)
 
 
-def test_analytic_accuracy_over_the_whole_domain():
-    """Issue #12: ≤ 1 % on irregularity, delta_pp, ecc_max, ≤ 5 % on gamma_pp, R/l ≤ 0.2, γ0 ≤ 45°."""
+@pytest.mark.parametrize(
+    "solver, measured",
+    [
+        ("analytic", (5e-6, 1.3e-5, 1e-6, 4e-7, 1e-5)),
+        (Analytic(corrections=1), (3e-4, 1.2e-3, 3.8e-3, 1.2e-3, 1e-3)),
+        (Analytic(nodes=None), (2e-6, 2e-6, 1e-6, 4e-7, 1e-6)),
+    ],
+)
+def test_analytic_accuracy_over_the_whole_domain(solver, measured):
+    """Issue #12: ≤ 1 % on irregularity, delta_pp, ecc_max, ≤ 5 % on gamma_pp, R/l ≤ 0.2, γ0 ≤ 45°.
+
+    ``measured`` are the largest errors seen on this set (delta_pp, irregularity,
+    gamma_pp, ecc_max, roller_axial_stroke); the test allows 4× those, and
+    always less than half the issue's bound.
+    """
     R, l, g = domain_layouts(400, seed=3)
     batch = Layout(R, l, g)
     names = ("delta_pp", "irregularity", "gamma_pp", "ecc_max", "roller_axial_stroke")
     newton = sweep(batch, n_theta=120, outputs=names)
-    analytic = sweep(batch, n_theta=120, solver="analytic", outputs=(*names, "converged"))
+    analytic = sweep(batch, n_theta=120, solver=solver, outputs=(*names, "converged"))
     keep = g > 0
-    for name, bound in zip(names, (0.01, 0.01, 0.05, 0.01, 0.01), strict=True):
+    bounds = (0.01, 0.01, 0.05, 0.01, 0.01)
+    for name, bound, seen in zip(names, bounds, measured, strict=True):
         error = np.max(np.abs(analytic[name][keep] / newton[name][keep] - 1))
-        assert error < bound / 2, name  # measured: 0.03 %, 0.12 %, 0.4 %, 0.13 %, 0.1 %
+        assert error < min(bound / 2, 4 * seen), name
     assert analytic["converged"].all() and analytic.result_counts["successful"] == 400
     closed = sweep(batch, n_theta=120, solver="closed_form", outputs=("gamma_pp",))
     assert np.max(np.abs(closed["gamma_pp"][keep] / newton["gamma_pp"][keep] - 1)) > 0.1
+
+
+@pytest.mark.parametrize("dtype, tol", [(np.float64, 1e-13), (np.float32, 2e-6)])
+def test_trigonometric_interpolation_is_exact_below_half_the_nodes(dtype, tol):
+    """The Dirichlet weights reproduce 2π/3-periodic harmonics below nodes/2, and their θ-slopes."""
+    nodes = 8
+    theta = jnp.asarray(np.linspace(0, 2 * np.pi / 3, 37), dtype)  # off and on the nodes
+    node_theta = np.arange(nodes) * (2 * np.pi / 3 / nodes)
+
+    def f(t):
+        return 0.3 + np.sin(3 * t) - 0.2 * np.cos(6 * t) + 0.05 * np.sin(9 * t)
+
+    def df(t):
+        return 3 * np.cos(3 * t) + 1.2 * np.sin(6 * t) + 0.45 * np.cos(9 * t)
+
+    values = jnp.asarray(f(node_theta), dtype)
+    interpolated, slope = jax.jvp(
+        lambda t: trigonometric_interpolation(t, nodes) @ values, (theta,), (jnp.ones_like(theta),)
+    )
+    t = np.asarray(theta, float)
+    np.testing.assert_allclose(interpolated, f(t), rtol=0, atol=tol)
+    np.testing.assert_allclose(slope, df(t), rtol=0, atol=30 * tol)
+
+
+def test_interpolated_analytic_matches_the_angle_by_angle_answer():
+    """Analytic on 8 nodes vs at every angle: < 2e-5 relative at the domain's corner."""
+    corner = Layout(np.array([40.0, 10.0]), np.array([200.0, 500.0]), np.radians([45.0, 1e-4]))
+    names = ("delta_pp", "irregularity", "gamma_pp", "ecc_max", "roller_axial_stroke")
+    direct = sweep(corner, n_theta=360, solver=Analytic(nodes=None), outputs=names)
+    nodes = sweep(corner, n_theta=360, solver="analytic", outputs=(*names, "error_estimate"))
+    for name in names:
+        np.testing.assert_allclose(nodes[name], direct[name], rtol=2e-5, err_msg=name)
+    assert np.all(nodes["error_estimate"] < 1e-4)  # the estimate sees the interpolation too
 
 
 def test_analytic_solution_at_zero_angle_and_its_residual():
