@@ -19,6 +19,26 @@ import tempfile
 import jax
 
 _CACHE = contextvars.ContextVar("tripodjax_export_cache", default=None)
+_ROWS = contextvars.ContextVar("tripodjax_batch_rows", default=None)
+
+
+def batch_rows():
+    """Rows per call of the solve program when it evaluates points; None outside [`rows_per_call`][tripodjax.optimize._compiled.rows_per_call]."""
+    return _ROWS.get()
+
+
+@contextlib.contextmanager
+def rows_per_call(rows):
+    """Within the block, point evaluations use the solve program at ``rows`` rows per call.
+
+    Set it to the batch of a solve that ran (or will run) in the same process, so
+    that the catalogue, the landscape and the sensitivities reuse its compiled program.
+    """
+    token = _ROWS.set(int(rows))
+    try:
+        yield
+    finally:
+        _ROWS.reset(token)
 
 
 def call(jitted, static, *args):

@@ -103,6 +103,19 @@ def _landscape_axes(spec, catalogue):
     return np.linspace(r_min, r_max, 28), np.linspace(0.95 * min(d), 1.05 * max(d), 28)
 
 
+def _mid_box(spec):
+    """The middle of the box of the free variables, in spec units (a design inside the domain)."""
+    import numpy as np
+
+    from tripodjax.optimize.problem import bounds, to_spec_units
+
+    lower, upper = bounds(spec.structure, spec.values, np)
+    return {
+        k: to_spec_units(k, 0.5 * (lo + hi))
+        for k, lo, hi in zip(spec.structure.free, lower, upper, strict=True)
+    }
+
+
 def main(argv=None):
     try:
         return _main(argv)
@@ -136,7 +149,7 @@ def _main(argv):
     jax.config.update("jax_compilation_cache_dir", _cache_dir())
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
     from tripodjax.optimize import report
-    from tripodjax.optimize._compiled import export_cache
+    from tripodjax.optimize._compiled import export_cache, rows_per_call
     from tripodjax.optimize.problem import constraint_landscape, evaluate, evaluate_catalogue
     from tripodjax.optimize.sensitivity import sensitivities
     from tripodjax.optimize.solver import _with, run
@@ -152,27 +165,32 @@ def _main(argv):
     scenarios = [spec.values] + [
         _with(spec.values, "objective", w_gaf_rms=w) for w in pareto_weights
     ]
-    # Independent work runs in a second thread: XLA compiles outside the GIL, so on a cold
-    # cache the catalogue's (and the sensitivities') program compiles beside the optimiser's.
+    # The catalogue, the landscape and the sensitivities evaluate points through the solve's
+    # own compiled program (evaluate-only rows of the same batch size): one program, not two.
+    # The full-fidelity check is a second, smaller program: on a cold cache it compiles in a
+    # second thread beside the solve, at a design inside the box.
+    full_reference = None
+    if spec.structure.fidelity != "newton" or spec.structure.n_theta != 360:
+        full_reference = spec.replace_values(solver={"fidelity": "newton", "n_theta": 360})
     pool = ThreadPoolExecutor(max_workers=1)
+    rows = len(scenarios) * spec.structure.starts
     try:
-        with export_cache(os.path.join(_cache_dir(), "exports")):
-            catalogue_job = pool.submit(contextvars.copy_context().run, evaluate_catalogue, spec)
+        with export_cache(os.path.join(_cache_dir(), "exports")), rows_per_call(rows):
+            warm = None
+            if full_reference is not None:
+                run_in_context = contextvars.copy_context().run
+                warm = pool.submit(run_in_context, evaluate, full_reference, _mid_box(spec))
             results = run(spec, scenarios, progress)
             result, pareto = results[0], list(zip(pareto_weights, results[1:], strict=True))
-            # The catalogue compiled the program the sensitivities use: wait for it, not twice.
-            catalogue, choice = catalogue_job.result()
+            catalogue, choice = evaluate_catalogue(spec)
             landscape = constraint_landscape(spec, *_landscape_axes(spec, catalogue))
-            full_job = None
-            if spec.structure.fidelity != "newton" or spec.structure.n_theta != 360:
-                reference = spec.replace_values(solver={"fidelity": "newton", "n_theta": 360})
-                design = {k: result.design[k] for k in spec.structure.free}
-                full_job = pool.submit(contextvars.copy_context().run, evaluate, reference, design)
             if result.converged:  # derivatives of an optimum, not of an unfinished point
                 result.sensitivities = sensitivities(spec, result)
             full = None
-            if full_job is not None:
-                full = {"solver": "newton", "n_theta": 360, **full_job.result()}
+            if full_reference is not None:
+                warm.result()
+                design = {k: result.design[k] for k in spec.structure.free}
+                full = {"solver": "newton", "n_theta": 360, **evaluate(full_reference, design)}
     finally:
         pool.shutdown(wait=False, cancel_futures=True)  # Ctrl-C does not wait for a compile
     figures = {

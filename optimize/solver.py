@@ -35,7 +35,7 @@ import numpy as np
 import optax
 
 from tripodjax._checks import check_layout_domain
-from tripodjax.optimize._compiled import call
+from tripodjax.optimize._compiled import batch_rows, call
 from tripodjax.optimize.problem import (
     bounds,
     constraint_names,
@@ -120,7 +120,7 @@ def _kkt(x, lam, c, grad_f, jac, lower, upper):
     return jnp.maximum(stationarity, jnp.maximum(feasibility, complementarity))
 
 
-def solve_problem(structure, values, z0):
+def solve_problem(structure, values, z0, x_eval=None, evaluate_only=False):
     """Optimise one problem from start z0 (vmap this over a batch). Returns a dict of arrays.
 
     One flat ``while_loop`` whose every iteration evaluates the model once (with its
@@ -128,6 +128,10 @@ def solve_problem(structure, values, z0):
     a line-search trial of the inner L-BFGS run, the end of that run (multiplier and
     penalty update, KKT check), or the start. One copy of the model in the compiled
     program keeps tracing and compilation short.
+
+    With ``evaluate_only`` (traced) the loop stops after its first evaluation, made at
+    ``x_eval`` (internal units, not bound to the box) instead of x(z0): the same compiled
+    program then serves [`evaluate_points`][tripodjax.optimize.solver.evaluate_points].
     """
     lower, upper, to_x, with_jacobian = _evaluation(structure, values)
     tolerance = values["solver"]["tolerance"]
@@ -171,9 +175,11 @@ def solve_problem(structure, values, z0):
         history_kkt=nan_history,
     )
 
+    x_eval = to_x(z0) if x_eval is None else x_eval
+
     def iterate(s):
         y = s["z"] + s["alpha"] * s["direction"]
-        trial = with_jacobian(to_x(y))
+        trial = with_jacobian(jnp.where(s["start"] & evaluate_only, x_eval, to_x(y)))
         f, c, grad_f, jac = trial[:4]
         value, grad = augmented(y, s["lam"], s["rho"], f, c, grad_f, jac)
         armijo = value <= s["value"] + ARMIJO * s["alpha"] * s["slope"]
@@ -199,6 +205,7 @@ def solve_problem(structure, values, z0):
         kkt = _kkt(to_x(z), lam_new, c, grad_f, jac, lower, upper)
         kkt = jnp.where(jnp.isfinite(kkt), kkt, jnp.inf)
         done = inner_over & ((kkt <= tolerance) | (s["k"] >= structure.max_outer))
+        done = done | evaluate_only
         lam = jnp.where(inner_over, lam_new, s["lam"])
         rho = jnp.where(inner_over, rho_new, s["rho"])
         # A new inner run starts from z on the updated Lagrangian.
@@ -240,8 +247,10 @@ def solve_problem(structure, values, z0):
         )
 
     s = jax.lax.while_loop(lambda s: jnp.logical_not(s["done"]), iterate, state)
-    f, c, _, _, q, code = s["evaluation"]
+    f, c, grad_f, jac, q, code = s["evaluation"]
     return dict(
+        gradient=grad_f,
+        jacobian=jac,
         x=to_x(s["z"]),
         lam=s["lam"],
         objective=f,
@@ -256,51 +265,61 @@ def solve_problem(structure, values, z0):
     )
 
 
-POINTS_BLOCK = 128  # evaluate_points pads its rows to a multiple of this: one shape, one program
-
-
-@functools.partial(jax.jit, static_argnums=0)
-def _evaluate_points(structure, values, x):
-    def one(values, x):
-        return _evaluation(structure, values)[3](x)
-
-    return jax.vmap(one)(values, x)
-
-
 def evaluate_points(structure, values, x):
     """(f, c − offset, ∇f, J, quantities, codes) at each row of a batch of (values, x).
 
     ``values`` has a leading row axis on every leaf, ``x`` is (rows, free variables) in
-    internal units; forward mode, exact in x. The rows go through in blocks of
-    ``POINTS_BLOCK`` (the last one padded), so the sensitivities, the catalogue and the
-    constraint landscape share one compiled program.
+    internal units (not bound to the box); forward mode, exact in x. The rows go
+    through the compiled program of [`solve_batch`][tripodjax.optimize.solver.solve_batch]
+    in its evaluate-only mode, in blocks of [`rows_per_call`][tripodjax.optimize._compiled.rows_per_call]
+    (the spec's starts unless set; the last block padded): the catalogue, the constraint
+    landscape and the sensitivities reuse the solve's program instead of compiling one.
     """
     rows = x.shape[0]
-    padded = -(-rows // POINTS_BLOCK) * POINTS_BLOCK
+    block = batch_rows() or structure.starts
+    padded = -(-rows // block) * block
 
     def pad(a):
         a = np.asarray(a)
         return np.concatenate([a, np.repeat(a[:1], padded - rows, axis=0)])
 
     values, x = jax.tree_util.tree_map(pad, values), pad(x)
+    offset = SAFETY * np.asarray(values["solver"]["tolerance"])[:, None]
+    z0 = np.zeros(x.shape)
+    only = np.ones(block, bool)
     blocks = []
     with jax.enable_x64(True):  # float64, scoped to this call
-        for start in range(0, padded, POINTS_BLOCK):
-            block = slice(start, start + POINTS_BLOCK)
+        for start in range(0, padded, block):
+            rows_of_block = slice(start, start + block)
             out = call(
-                _evaluate_points,
+                solve_batch,
                 structure,
-                jax.tree_util.tree_map(lambda a, b=block: a[b], values),
-                x[block],
+                jax.tree_util.tree_map(lambda a, b=rows_of_block: a[b], values),
+                z0[rows_of_block],
+                x[rows_of_block],
+                only,
             )
-            blocks.append(jax.tree_util.tree_map(np.asarray, out))
-    return jax.tree_util.tree_map(lambda *a: np.concatenate(a)[:rows], *blocks)
+            keep = ("objective", "margins", "gradient", "jacobian", "quantities", "code")
+            blocks.append({k: jax.tree_util.tree_map(np.asarray, out[k]) for k in keep})
+    out = jax.tree_util.tree_map(lambda *a: np.concatenate(a)[:rows], *blocks)
+    return (
+        out["objective"],
+        out["margins"] - offset[:rows],
+        out["gradient"],
+        out["jacobian"],
+        out["quantities"],
+        out["code"],
+    )
 
 
 @functools.partial(jax.jit, static_argnums=0)
-def solve_batch(structure, values, z0):
-    """Every problem of a flat batch: ``values`` and ``z0`` carry a leading batch axis."""
-    return jax.vmap(functools.partial(solve_problem, structure))(values, z0)
+def solve_batch(structure, values, z0, x_eval, evaluate_only):
+    """Every problem of a flat batch: every argument carries a leading batch axis.
+
+    Rows with ``evaluate_only`` are evaluated at ``x_eval`` instead (see
+    [`solve_problem`][tripodjax.optimize.solver.solve_problem]).
+    """
+    return jax.vmap(functools.partial(solve_problem, structure))(values, z0, x_eval, evaluate_only)
 
 
 @dataclasses.dataclass
@@ -368,7 +387,15 @@ def run(
     batch_z0 = np.concatenate([z0] * len(scenarios))
     meter = resolve(progress).start(total=1, desc="optimize", unit="solve")
     with jax.enable_x64(True):  # the design problem runs in float64; scoped to this call
-        out = call(solve_batch, structure, batch_values, jnp.asarray(batch_z0))
+        rows = batch_z0.shape[0]
+        out = call(
+            solve_batch,
+            structure,
+            batch_values,
+            np.asarray(batch_z0, float),
+            np.zeros(batch_z0.shape),
+            np.zeros(rows, bool),
+        )
         out = jax.tree_util.tree_map(np.asarray, out)
     meter.update(1)
     meter.close()

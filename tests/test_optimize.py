@@ -181,6 +181,24 @@ def test_a_changed_number_does_not_retrace(default_result):
     assert changed.converged and changed.design["d_roller"] > default_result.design["d_roller"]
 
 
+def test_catalogue_landscape_and_sensitivities_reuse_the_solve_program(default_result):
+    """Points are evaluated by the solve's own compiled program (evaluate-only rows)."""
+    from tripodjax.optimize._compiled import rows_per_call
+    from tripodjax.optimize.problem import constraint_landscape
+
+    before = solver.solve_batch._cache_size()
+    evaluate_catalogue(SPEC)
+    constraint_landscape(SPEC, [18.0, 24.0, 30.0], [25.0, 31.0])  # 6 rows: two calls of 4
+    sensitivities(SPEC, default_result)
+    assert solver.solve_batch._cache_size() == before
+    with rows_per_call(3):  # another batch size is another program, and the same answers
+        entries, _ = evaluate_catalogue(SPEC)
+    assert solver.solve_batch._cache_size() == before + 1
+    assert [e["objective"] for e in entries] == [
+        e["objective"] for e in evaluate_catalogue(SPEC)[0]
+    ]
+
+
 def _slsqp(spec, free, x0s):
     """The peer: SciPy SLSQP over evaluate with finite-difference gradients, best of several starts."""
     lower = np.array([spec.resolved["bounds"][k][0] for k in free])
