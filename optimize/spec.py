@@ -100,9 +100,9 @@ max_R_over_d = 0.83
 # max_eccentricity = 0.5      # spider-centre eccentricity [mm]
 
 [solver]
-# The cheapest setting (first solve: trace, compile and run) whose design lies within 0.1 % of
-# the newton / n_theta = 360 answer (python -m tripodjax.optimize.bench: analytic runs faster but
-# compiles slower); optimize-joint re-checks the design at full fidelity.
+# Among the cheapest settings (first solve: trace, compile and run) whose design lies within 0.1 %
+# of the newton / n_theta = 360 answer (python -m tripodjax.optimize.bench; analytic at 360 angles
+# costs the same and lands within 1e-9 of it); optimize-joint re-checks the design at full fidelity.
 fidelity = "newton"    # halfshaft kinematics: "newton" (exact) or "analytic" (cheap)
 n_theta = 168          # input angles per revolution for the kinematics (multiple of 6)
 starts = 4             # multi-start points (a deterministic grid over the bounds)
