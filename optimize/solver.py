@@ -271,7 +271,7 @@ def evaluate_points(structure, values, x):
     ``values`` has a leading row axis on every leaf, ``x`` is (rows, free variables) in
     internal units (not bound to the box); forward mode, exact in x. The rows go
     through the compiled program of [`solve_batch`][tripodjax.optimize.solver.solve_batch]
-    in its evaluate-only mode, in blocks of [`rows_per_call`][tripodjax.optimize._compiled.rows_per_call]
+    in its evaluate-only mode, in blocks of ``_compiled.rows_per_call``
     (the spec's starts unless set; the last block padded): the catalogue, the constraint
     landscape and the sensitivities reuse the solve's program instead of compiling one.
     """
