@@ -21,6 +21,7 @@ and, in [`evaluate`][tripodjax.optimize.evaluate], the bounds of the free
 variables, (x − lo)/(hi − lo) and (hi − x)/(hi − lo).
 """
 
+import contextlib
 import functools
 import math
 import numbers
@@ -34,7 +35,7 @@ from tripodjax import friction, hertz
 from tripodjax._checks import check_layout_domain
 from tripodjax.kinematics import metrics_from, revolution
 from tripodjax.layout import Layout
-from tripodjax.optimize._compiled import call
+from tripodjax.optimize._compiled import call, rows_per_call
 from tripodjax.optimize.spec import (
     GAF_QUANTITIES,
     KINEMATIC_QUANTITIES,
@@ -309,13 +310,18 @@ def evaluate(spec: Spec, design: Mapping[str, float]) -> dict:
     }
 
 
+OWN_PROGRAM_ROWS = 128  # rows per call when the catalogue's structure is not the spec's
+
+
 def _evaluate_sizes(spec, sizes):
     """(objective, margins, quantities) for (R, d) pairs, every other variable at its spec value.
 
-    One batch of the program the sensitivities use; the bounds of R and d do not apply.
+    Through the solve's program when R and d_roller are free in the spec (the catalogue's
+    problem is then the spec's own); the bounds of R and d do not apply.
     """
     from tripodjax.optimize.solver import SAFETY, evaluate_points
 
+    shared = _unbounded(spec).structure == spec.structure
     spec = _unbounded(spec)
     structure = spec.structure
     fixed = fixed_design(spec.values)
@@ -324,7 +330,9 @@ def _evaluate_sizes(spec, sizes):
         for R, d in sizes
     ]
     batch = jax.tree_util.tree_map(lambda a: np.stack([np.asarray(a)] * len(rows)), spec.values)
-    f, c, _, _, q, _ = evaluate_points(structure, batch, np.asarray(rows, float))
+    # R and d fixed in the spec: no solve of this structure ran, so use larger blocks.
+    with contextlib.nullcontext() if shared else rows_per_call(OWN_PROGRAM_ROWS):
+        f, c, _, _, q, _ = evaluate_points(structure, batch, np.asarray(rows, float))
     offset = SAFETY * float(spec.values["solver"]["tolerance"])
     return f, c + offset, q, constraint_names(structure)
 

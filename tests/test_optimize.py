@@ -194,9 +194,11 @@ def test_catalogue_landscape_and_sensitivities_reuse_the_solve_program(default_r
     with rows_per_call(3):  # another batch size is another program, and the same answers
         entries, _ = evaluate_catalogue(SPEC)
     assert solver.solve_batch._cache_size() == before + 1
-    assert [e["objective"] for e in entries] == [
-        e["objective"] for e in evaluate_catalogue(SPEC)[0]
-    ]
+    np.testing.assert_allclose(
+        [e["objective"] for e in entries if e["objective"] is not None],
+        [e["objective"] for e in evaluate_catalogue(SPEC)[0] if e["objective"] is not None],
+        rtol=1e-12,
+    )
 
 
 def _slsqp(spec, free, x0s):

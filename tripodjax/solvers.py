@@ -97,7 +97,7 @@ class Analytic:
     (the interpolation's share; at every angle, ``nodes=None``: below 2e-6).
     One correction: irregularity 1.2e-3, delta_pp 3e-4, gamma_pp 3.8e-3,
     ecc_max 1.2e-3; the closed form alone: 4.2 %, 0.6 %, 23 %, 7.3 %.
-    Speed (``python -m tripodjax.bench``, 2-core CPU): 18–41× newton in the
+    Speed (``python -m tripodjax.bench``, 2-core CPU): 16–31× newton in the
     same dtype, about the cost of the closed form.
 
     Every point carries an error estimate (the next Newton step with exact
@@ -115,7 +115,7 @@ class Analytic:
             ([`trigonometric_interpolation`][tripodjax.halfshaft.trigonometric_interpolation]):
             an even integer 4 … 60, default 8, or None to solve at every
             angle. Δ and v are smooth in θ (each harmonic about 50× below the
-            one before at R/l = 0.2, γ0 = 45°), so 8 nodes add < 2e-5 relative
+            one before at R/l = 0.2, γ0 = 45°), so 8 nodes add < 3e-5 relative
             to the errors above (measured over the domain) and make the level
             several times faster. The error estimate and result codes are
             computed at every grid angle, so they include the interpolation.
