@@ -321,9 +321,9 @@ def _evaluate_sizes(spec, sizes):
     """
     from tripodjax.optimize.solver import SAFETY, evaluate_points
 
-    shared = _unbounded(spec).structure == spec.structure
-    spec = _unbounded(spec)
-    structure = spec.structure
+    unbounded = _unbounded(spec)
+    shared = unbounded.structure == spec.structure
+    spec, structure = unbounded, unbounded.structure
     fixed = fixed_design(spec.values)
     rows = [
         [from_spec_units(k, dict(fixed, R=R, d_roller=d)[k]) for k in structure.free]

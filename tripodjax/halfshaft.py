@@ -484,17 +484,19 @@ def _finish_analytic(R, l, gamma0, theta, delta, v, solver):
     """The HalfshaftSolution of an Analytic answer (Δ, v): codes from its error estimate."""
     delta, v = jnp.broadcast_arrays(delta, v)
     steps = jnp.full(delta.shape, solver.corrections, jnp.int32)
-    _, estimate = _diagnostics(R, l, gamma0, theta, delta, v)
+    diagnostics = _diagnostics(R, l, gamma0, theta, delta, v)
     bad = _nonfinite_inputs(R, l, gamma0, theta) | ~(jnp.isfinite(delta) & jnp.isfinite(v))
-    result = code_where(estimate > solver.validity, RESULTS.outside_validity, 0)
+    result = code_where(diagnostics[1] > solver.validity, RESULTS.outside_validity, 0)
     result = code_where(bad, RESULTS.nonfinite, result)
-    return _finish(R, l, gamma0, theta, delta, v, result, steps)
+    return _finish(R, l, gamma0, theta, delta, v, result, steps, diagnostics)
 
 
-def _finish(R, l, gamma0, theta, delta, v, result, steps):
+def _finish(R, l, gamma0, theta, delta, v, result, steps, diagnostics=None):
     """The HalfshaftSolution of (Δ, v): diagnostics, and NaN wherever an input is not finite."""
     bad_input = _nonfinite_inputs(R, l, gamma0, theta)
-    residual, estimate = _diagnostics(R, l, gamma0, theta, delta, v)
+    if diagnostics is None:
+        diagnostics = _diagnostics(R, l, gamma0, theta, delta, v)
+    residual, estimate = diagnostics
     # Non-finite input gives NaN, never a finite answer (e.g. l = ±inf makes the pair
     # trivially solvable): a factor NaN/1, so the θ- and layout-derivatives are NaN there too.
     nan_where_bad = jnp.where(bad_input, jnp.nan, 1.0).astype(delta.dtype)
