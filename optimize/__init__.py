@@ -11,18 +11,55 @@
 - [`evaluate_catalogue`][tripodjax.optimize.evaluate_catalogue] — the GE/GI sizes under the spec.
 """
 
-from tripodjax.optimize.problem import constraint_landscape, evaluate, evaluate_catalogue
-from tripodjax.optimize.sensitivity import sensitivities
-from tripodjax.optimize.solver import Result, pareto_front, solve, solve_family
-from tripodjax.optimize.spec import (
-    DEFAULT_SPEC_TOML,
-    QUANTITIES,
-    VARIABLES,
-    Spec,
-    SpecError,
-    load_spec,
-    parse_spec,
-)
+import importlib
+import typing
+
+# Imported on first use (PEP 562), so that ``optimize-joint`` starts without JAX (see
+# ``tripodjax/__init__.py``).
+_ATTRIBUTES = {
+    "constraint_landscape": "problem",
+    "evaluate": "problem",
+    "evaluate_catalogue": "problem",
+    "sensitivities": "sensitivity",
+    "Result": "solver",
+    "pareto_front": "solver",
+    "solve": "solver",
+    "solve_family": "solver",
+    "DEFAULT_SPEC_TOML": "spec",
+    "QUANTITIES": "spec",
+    "VARIABLES": "spec",
+    "Spec": "spec",
+    "SpecError": "spec",
+    "load_spec": "spec",
+    "parse_spec": "spec",
+}
+
+if typing.TYPE_CHECKING:  # what the lazy attributes are, for type checkers and the docs
+    from tripodjax.optimize.problem import constraint_landscape, evaluate, evaluate_catalogue
+    from tripodjax.optimize.sensitivity import sensitivities
+    from tripodjax.optimize.solver import Result, pareto_front, solve, solve_family
+    from tripodjax.optimize.spec import (
+        DEFAULT_SPEC_TOML,
+        QUANTITIES,
+        VARIABLES,
+        Spec,
+        SpecError,
+        load_spec,
+        parse_spec,
+    )
+
+
+def __getattr__(name: str) -> typing.Any:
+    if name not in _ATTRIBUTES:
+        raise AttributeError(f"module 'tripodjax.optimize' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"tripodjax.optimize.{_ATTRIBUTES[name]}"), name)
+    globals()[name] = value  # later look-ups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
 
 __all__ = [
     "DEFAULT_SPEC_TOML",

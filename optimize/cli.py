@@ -7,18 +7,102 @@ Exit status (also in ``--help``):
   "infeasible" and names the smallest violations); the report is written either way;
 - 2: bad specification, arguments or output folder (one line, nothing computed);
 - 3: the report could not be written (the design is printed; an older report is left intact);
-- 130: interrupted (Ctrl-C); no partial files are left.
+- 130: interrupted (Ctrl-C, SIGINT); 143: terminated (SIGTERM); one line, no partial files.
+
+The command handles SIGINT and SIGTERM from its first instruction: ``tripodjax`` and
+this module import nothing heavy, so ``--help`` and argument errors answer before JAX
+is imported. The computation runs in a worker thread while the main thread waits, so a
+signal is handled at once, not after a compilation ends; the main thread stages the
+report and leaves on a signal only when no staged file remains in ``--out``.
 """
 
 import argparse
-import contextvars
+import contextlib
 import os
+import signal
 import sys
 import tempfile
-from concurrent.futures import ThreadPoolExecutor
+import threading
 
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT, EXIT_WRITE_FAILED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+EXIT_TERMINATED = 143  # 128 + SIGTERM
 PARETO_FACTORS = (0.25, 0.5, 1.0, 2.0, 4.0)
+SIGNALS = {"SIGINT": (EXIT_INTERRUPTED, "interrupted"), "SIGTERM": (EXIT_TERMINATED, "terminated")}
+
+
+# --------------------------------------------------------------------------- signals
+
+
+class _Signals:
+    """What a signal does now: leave at once (one line, ``os._exit``), or after a staging block.
+
+    A handler that raised an exception would depend on where the main thread is (an
+    exception raised inside a garbage-collector callback of XLA is printed and dropped);
+    this one leaves the process itself, except inside ``staging``,
+    where it only records the signal.
+    """
+
+    def __init__(self):
+        self.staging_depth = 0
+        self.pending = None
+        self.detail = "no report written"
+
+    def handle(self, signum, frame):
+        if self.staging_depth:
+            self.pending = self.pending or signum
+            return
+        self.leave(signum)
+
+    def leave(self, signum):
+        code, what = SIGNALS[signal.Signals(signum).name]
+        # os.write: no Python stream whose lock the interrupted code may hold.
+        os.write(2, f"optimize-joint: {what}; {self.detail}\n".encode())
+        os._exit(code)  # no teardown racing XLA's compiler threads
+
+    @contextlib.contextmanager
+    def staging(self):
+        """Within the block a signal waits: files staged in ``--out`` are renamed or removed first."""
+        self.staging_depth += 1
+        try:
+            yield
+        finally:
+            self.staging_depth -= 1
+            if not self.staging_depth and self.pending is not None:
+                self.leave(self.pending)
+
+
+_SIGNALS = _Signals()
+
+
+def _install_handlers():
+    for name in SIGNALS:
+        signal.signal(getattr(signal, name), _SIGNALS.handle)
+
+
+def _in_worker(function, *args):
+    """``function(*args)`` in a worker thread while this (the main) thread waits on it.
+
+    Signal handlers run in the main thread between its bytecodes; waiting on a thread
+    (``join``) lets them run at once, where a compilation on the main thread would
+    delay them until it returns.
+    """
+    box = {}
+
+    def target():
+        try:
+            box["value"] = function(*args)
+        except BaseException as error:  # re-raised in the main thread
+            box["error"] = error
+
+    worker = threading.Thread(target=target, name="optimize-joint", daemon=True)
+    worker.start()
+    worker.join()
+    if "error" in box:
+        raise box["error"]
+    return box["value"]
+
+
+# --------------------------------------------------------------------------- arguments
 
 
 class _Parser(argparse.ArgumentParser):
@@ -38,7 +122,7 @@ def _parse(argv):
         epilog=(
             "Exit status: 0 converged and feasible; 1 not converged or infeasible (the report says "
             "which); 2 bad specification, arguments or --out; 3 the report could not be written; "
-            "130 interrupted. Compiled code is cached in $TRIPODJAX_CACHE_DIR (default "
+            "130 interrupted (SIGINT), 143 terminated (SIGTERM). Compiled code is cached in $TRIPODJAX_CACHE_DIR (default "
             "~/.cache/tripodjax/jax), which makes later runs faster."
         ),
     )
@@ -72,9 +156,10 @@ def _check_out(path):
     if not os.path.isdir(path):
         return f"--out {path} is not a directory"
     try:
-        fd, probe = tempfile.mkstemp(prefix=".write-test.", dir=path)
-        os.close(fd)
-        os.remove(probe)
+        with _SIGNALS.staging():  # the probe never stays behind
+            fd, probe = tempfile.mkstemp(prefix=".write-test.", dir=path)
+            os.close(fd)
+            os.remove(probe)
     except OSError as error:
         return f"--out {path} is not writable: {error.strerror or error}"
     return None
@@ -117,9 +202,10 @@ def _mid_box(spec):
 
 
 def main(argv=None):
+    """The command: parse, check, compute (in a worker thread), write. Returns the exit status."""
     try:
         return _main(argv)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt:  # main() called without command()'s handlers
         print("optimize-joint: interrupted; no report written", file=sys.stderr)
         return EXIT_INTERRUPTED
 
@@ -143,6 +229,15 @@ def _main(argv):
     except SpecError as error:
         print(f"optimize-joint: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    outcome = _in_worker(_compute, args, spec)
+    return _write(args, outcome)
+
+
+def _compute(args, spec):
+    """Everything the report holds: solve, catalogue, landscape, sensitivities, figures."""
+    import contextvars
+    from concurrent.futures import ThreadPoolExecutor
+
     import jax
 
     # The command's own choice: keep compiled executables for the next run.
@@ -192,7 +287,7 @@ def _main(argv):
                 design = {k: result.design[k] for k in spec.structure.free}
                 full = {"solver": "newton", "n_theta": 360, **evaluate(full_reference, design)}
     finally:
-        pool.shutdown(wait=False, cancel_futures=True)  # Ctrl-C does not wait for a compile
+        pool.shutdown(wait=False, cancel_futures=True)
     figures = {
         "convergence.png": report.figure_convergence(result),
         "constraint_margins.png": report.figure_margins(result),
@@ -211,24 +306,36 @@ def _main(argv):
         full_fidelity=full,
         source=args.spec or "default",
     )
-    status = "converged" if result.converged else "NOT converged"
-    ad_hoc = _summary(result)
+    message, code = _verdict(result)
+    body["message"] = message
     cat = (
         f"{choice['family']} {choice['size']} (objective {choice['objective']:.5f})"
         if choice
         else "none feasible"
     )
-    message, code = "converged to a feasible design", EXIT_OK
+    status = "converged" if result.converged else "NOT converged"
+    return {
+        "body": body,
+        "figures": figures,
+        "message": message,
+        "code": code,
+        "designs": f"catalogue: {cat}; ad hoc: {_summary(result)}",
+        "status": f"KKT residual {result.kkt_residual:.2e} ({status})",
+    }
+
+
+def _verdict(result):
+    """(message, exit status) of a result."""
     if not result.feasible:
         worst = sorted(
             (c["margin"], name) for name, c in result.constraints.items() if c["margin"] < 0
         )
         listed = ", ".join(f"{name} (margin {m:+.3g})" for m, name in worst[:3])
-        message, code = (
+        return (
             f"infeasible: no start reached feasibility; smallest violations: {listed}",
             EXIT_NOT_CONVERGED,
         )
-    elif not result.converged:
+    if not result.converged:
         reasons = []
         if not result.kkt_converged:
             reasons.append(
@@ -240,37 +347,48 @@ def _main(argv):
             )
         if not result.hertz_converged:
             reasons.append(f"the Hertz ellipse (κ) solve at the design returned {result.result}")
-        message, code = f"not converged: {'; '.join(reasons)}", EXIT_NOT_CONVERGED
-    body["message"] = message
-    try:
-        report.write(args.out, body, figures)
-    except OSError as error:
-        print(f"optimize-joint: catalogue: {cat}; ad hoc: {ad_hoc}", file=sys.stderr)
-        print(
-            f"optimize-joint: cannot write the report in {args.out}: {error.strerror or error}",
-            file=sys.stderr,
-        )
-        return EXIT_WRITE_FAILED
+        return f"not converged: {'; '.join(reasons)}", EXIT_NOT_CONVERGED
+    return "converged to a feasible design", EXIT_OK
+
+
+def _write(args, outcome):
+    """Write the report (the main thread: a signal waits until no staged file is left)."""
+    from tripodjax.optimize import report
+
+    with _SIGNALS.staging():
+        try:
+            report.write(args.out, outcome["body"], outcome["figures"])
+        except OSError as error:
+            print(f"optimize-joint: {outcome['designs']}", file=sys.stderr)
+            print(
+                f"optimize-joint: cannot write the report in {args.out}: {error.strerror or error}",
+                file=sys.stderr,
+            )
+            return EXIT_WRITE_FAILED
+        _SIGNALS.detail = f"the report in {args.out} was complete before the signal"
     print(
-        f"optimize-joint: catalogue: {cat}; ad hoc: {ad_hoc}, KKT residual "
-        f"{result.kkt_residual:.2e} ({status}); report in {os.path.join(args.out, 'report.json')}"
+        f"optimize-joint: {outcome['designs']}, {outcome['status']}; "
+        f"report in {os.path.join(args.out, 'report.json')}"
     )
-    if code != EXIT_OK:
-        print(f"optimize-joint: {message}", file=sys.stderr)
-    return code
+    if outcome["code"] != EXIT_OK:
+        print(f"optimize-joint: {outcome['message']}", file=sys.stderr)
+    return outcome["code"]
 
 
 def command():
     """The ``optimize-joint`` console script: ``main()`` as the process's exit status.
 
-    After Ctrl-C the process leaves at once (``os._exit``) once its one line is printed:
-    an interpreter teardown racing XLA's compiler threads can crash. Nothing is left to
-    clean up by then (a report is staged under temporary names and removed on the way out).
+    Its first instruction installs the SIGINT and SIGTERM handlers (nothing heavy is
+    imported before it). A signal prints one line and leaves at once (``os._exit``:
+    an interpreter teardown racing XLA's compiler threads can crash) with 130 / 143;
+    while the report is being staged in ``--out`` it waits until every staged file is
+    renamed into place or removed.
     """
+    _install_handlers()
     code = main()
+    sys.stdout.flush()
+    sys.stderr.flush()
     if code == EXIT_INTERRUPTED:
-        sys.stdout.flush()
-        sys.stderr.flush()
         os._exit(code)
     sys.exit(code)
 

@@ -21,21 +21,100 @@ Nothing here changes JAX's global configuration: enable float64 yourself with
 ``jax.config.update("jax_enable_x64", True)`` when you need it.
 """
 
-import importlib.metadata
+import importlib
+import sys
+import types
+import typing
 
-from tripodjax import catalogue, friction, hertz, joint, progress, solvers
-from tripodjax.halfshaft import HalfshaftSolution, solve_halfshaft
-from tripodjax.kinematics import KinematicMetrics, kinematic_metrics
-from tripodjax.layout import TABLE_2_1, Layout, seed_case
-from tripodjax.motion import JointMotion, first_order_motion, halfshaft_motion
-from tripodjax.results import RESULTS
-from tripodjax.solvers import Analytic, ClosedForm, Newton, SolverError
-from tripodjax.sweep import sweep
+# The package's attributes are imported on first use (PEP 562): ``import tripodjax`` itself
+# loads neither JAX nor NumPy, so a command built on it (``optimize-joint``) installs its
+# signal handlers and answers ``--help`` before the heavy imports.
+_ATTRIBUTES = {
+    "RESULTS": "tripodjax.results",
+    "Analytic": "tripodjax.solvers",
+    "ClosedForm": "tripodjax.solvers",
+    "Newton": "tripodjax.solvers",
+    "SolverError": "tripodjax.solvers",
+    "HalfshaftSolution": "tripodjax.halfshaft",
+    "solve_halfshaft": "tripodjax.halfshaft",
+    "KinematicMetrics": "tripodjax.kinematics",
+    "kinematic_metrics": "tripodjax.kinematics",
+    "TABLE_2_1": "tripodjax.layout",
+    "Layout": "tripodjax.layout",
+    "seed_case": "tripodjax.layout",
+    "JointMotion": "tripodjax.motion",
+    "first_order_motion": "tripodjax.motion",
+    "halfshaft_motion": "tripodjax.motion",
+    "sweep": "tripodjax.sweep",
+}
+_SUBMODULES = (
+    "catalogue",
+    "friction",
+    "halfshaft",
+    "hertz",
+    "joint",
+    "kinematics",
+    "layout",
+    "motion",
+    "progress",
+    "results",
+    "solvers",
+)
 
-try:  # one version: the installed metadata, which pyproject.toml takes from tripodjax/_version.py
-    __version__ = importlib.metadata.version("tripodjax")
-except importlib.metadata.PackageNotFoundError:  # a source tree that is not installed
-    from tripodjax._version import version as __version__  # noqa: F401
+if typing.TYPE_CHECKING:  # what the lazy attributes are, for type checkers and the docs
+    from tripodjax import catalogue, friction, hertz, joint, progress, solvers
+    from tripodjax.halfshaft import HalfshaftSolution, solve_halfshaft
+    from tripodjax.kinematics import KinematicMetrics, kinematic_metrics
+    from tripodjax.layout import TABLE_2_1, Layout, seed_case
+    from tripodjax.motion import JointMotion, first_order_motion, halfshaft_motion
+    from tripodjax.results import RESULTS
+    from tripodjax.solvers import Analytic, ClosedForm, Newton, SolverError
+    from tripodjax.sweep import sweep
+
+    __version__: str
+
+
+def __getattr__(name: str) -> typing.Any:
+    value: typing.Any
+    if name == "__version__":
+        value = _version()
+    elif name in _SUBMODULES:
+        value = importlib.import_module(f"tripodjax.{name}")
+    elif name in _ATTRIBUTES:
+        value = getattr(importlib.import_module(_ATTRIBUTES[name]), name)
+    else:
+        raise AttributeError(f"module 'tripodjax' has no attribute {name!r}")
+    globals()[name] = value  # later look-ups skip this function
+    return value
+
+
+class _Package(types.ModuleType):
+    def __setattr__(self, name: str, value: typing.Any) -> None:
+        # Importing the submodule tripodjax.sweep binds the package's ``sweep`` to the module;
+        # the package's ``sweep`` is the function of that name (as ``from … import`` made it).
+        if name in _ATTRIBUTES and isinstance(value, types.ModuleType):
+            value = getattr(value, name)
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__) | {"__version__"})
+
+
+def _version() -> str:
+    """One version: the installed metadata, which pyproject.toml takes from tripodjax/_version.py."""
+    import importlib.metadata
+
+    try:
+        return importlib.metadata.version("tripodjax")
+    except importlib.metadata.PackageNotFoundError:  # a source tree that is not installed
+        from tripodjax._version import version
+
+        return version
+
 
 __all__ = [
     "RESULTS",
