@@ -326,6 +326,13 @@ def _compute(args, spec):
 
 def _verdict(result):
     """(message, exit status) of a result."""
+    if result.result == "nonfinite":
+        return (
+            "not converged: the objective or a constraint margin is not finite at the design "
+            "(result nonfinite): some numbers of the spec overflow together, e.g. a weight "
+            "w_<q> over its reference <q>_ref, or a limit or load near 0",
+            EXIT_NOT_CONVERGED,
+        )
     if not result.feasible:
         worst = sorted(
             (c["margin"], name) for name, c in result.constraints.items() if c["margin"] < 0

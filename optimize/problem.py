@@ -24,7 +24,6 @@ variables, (x − lo)/(hi − lo) and (hi − x)/(hi − lo).
 import contextlib
 import functools
 import math
-import numbers
 from collections.abc import Mapping
 
 import jax
@@ -32,7 +31,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from tripodjax import friction, hertz
-from tripodjax._checks import check_layout_domain
+from tripodjax._checks import check_instance, check_layout_domain, real_scalar
 from tripodjax.kinematics import metrics_from, revolution
 from tripodjax.layout import Layout
 from tripodjax.optimize._compiled import call, rows_per_call
@@ -171,7 +170,12 @@ def objective_and_margins(structure, values, x):
         limit = values["constraints"][name]
         value = jnp.maximum(q[k], MARGIN_FLOOR * limit)
         margins.append(jnp.log(limit / value) if sense == "max" else jnp.log(value / limit))
-    return jnp.asarray(objective), jnp.stack(margins), q, code
+    objective, margins = jnp.asarray(objective), jnp.stack(margins)
+    # Finite quantities can still give an infinite objective or margin (a weight of 1e300 over
+    # a reference of 1e-300, an M_max of 5e-324): that is a non-finite problem, not a solve's.
+    finite = jnp.isfinite(objective) & jnp.all(jnp.isfinite(margins))
+    code = code.at[0].max(jnp.where(finite, RESULTS.successful, RESULTS.nonfinite))
+    return objective, margins, q, code
 
 
 def limits(structure, values):
@@ -218,10 +222,40 @@ def _evaluate(structure, values, x):
     return objective_and_margins(structure, values, x)
 
 
+def check_spec(spec, name="spec"):
+    """``TypeError`` naming ``name`` unless ``spec`` is a checked [`Spec`][tripodjax.optimize.Spec]."""
+    return check_instance(name, spec, Spec, "a Spec (tripodjax.optimize.load_spec())")
+
+
+def check_result(spec, result, name="result"):
+    """``TypeError`` naming ``name`` unless ``result`` is a Result of a solve of ``spec``'s structure.
+
+    A Result knows its free variables and constraints; another spec's Result (other free
+    variables or constraints) would be read against the wrong numbers.
+    """
+    from tripodjax.optimize.solver import Result
+
+    check_spec(spec)
+    check_instance(name, result, Result, "the Result of tripodjax.optimize.solve(spec)")
+    free = tuple(k for k in VARIABLES if k in result.starts[0]["design"]) if result.starts else ()
+    names = constraint_names(spec.structure)
+    if free != spec.structure.free or tuple(result.multipliers) != names:
+        raise TypeError(
+            f"{name} is the Result of another spec (free variables {', '.join(free) or 'none'}; "
+            f"constraints {', '.join(result.multipliers)}); allowed: the Result of "
+            f"solve(spec) for this spec (free variables {', '.join(spec.structure.free)}; "
+            f"constraints {', '.join(names)})"
+        )
+    return result
+
+
 def check_design(structure, values, design):
-    """Check a ``{variable: value}`` design (spec units); returns it as floats."""
-    if not isinstance(design, dict):
-        raise TypeError(f"design = {design!r} must be a dict {{variable: value}}")
+    """Check a ``{variable: value}`` design (spec units, any mapping); returns it as floats."""
+    if not isinstance(design, Mapping):
+        raise TypeError(
+            f"design = {design!r:.60} is not allowed; allowed: a mapping {{variable: value}} "
+            f"(got a {type(design).__name__})"
+        )
     unknown = sorted(set(design) - set(VARIABLES))
     if unknown:
         raise ValueError(f"design keys {unknown} not allowed; allowed: {', '.join(VARIABLES)}")
@@ -232,13 +266,7 @@ def check_design(structure, values, design):
         )
     out = {}
     for key, value in design.items():
-        if isinstance(value, bool) or not isinstance(
-            value, (numbers.Real, np.floating, np.integer)
-        ):
-            raise TypeError(
-                f"design[{key!r}] = {value!r} must be a real number [{VARIABLES[key][2]}]"
-            )
-        value = float(value)
+        value = real_scalar(f"design[{key!r}]", value, f"a real number [{VARIABLES[key][2]}]")
         low, high, low_open = VARIABLES[key][3]
         ok = math.isfinite(value) and (value > low if low_open else value >= low)
         ok = ok and (high is None or value <= high)
@@ -282,7 +310,7 @@ def evaluate(spec: Spec, design: Mapping[str, float]) -> dict:
         >>> round(out["quantities"]["outer_diameter"], 1)
         70.4
     """
-    structure = spec.structure
+    structure = check_spec(spec).structure
     design = check_design(structure, spec.values, design)
     values = jax.tree_util.tree_map(np.asarray, spec.values)
     for key, value in design.items():
@@ -349,7 +377,7 @@ def evaluate_catalogue(spec: Spec) -> tuple[list[dict], dict | None]:
     """
     from tripodjax import catalogue
 
-    fixed = fixed_design(spec.values)
+    fixed = fixed_design(check_spec(spec).values)
     sizes, entries = [], []
     for family, table in (("GE", catalogue.GE), ("GI", catalogue.GI)):
         for size, row in table.items():
@@ -383,6 +411,7 @@ def constraint_landscape(spec: Spec, R: np.ndarray, d: np.ndarray) -> dict:
     Returns ``{"R", "d", "objective" (len R × len d), "margins": {name: array}}``, for
     plots of the constraint landscape (the catalogue figure of the report).
     """
+    check_spec(spec)
     R, d = np.asarray(R, float), np.asarray(d, float)
     RR, DD = np.meshgrid(R, d, indexing="ij")
     f, c, _, names = _evaluate_sizes(spec, list(zip(RR.ravel(), DD.ravel(), strict=True)))

@@ -22,7 +22,7 @@ import math
 import jax
 import numpy as np
 
-from tripodjax.optimize.problem import bounds, constraint_names
+from tripodjax.optimize.problem import bounds, check_result, constraint_names
 from tripodjax.optimize.solver import BOUND_TOLERANCE, Result, evaluate_points
 from tripodjax.optimize.spec import Spec
 
@@ -139,6 +139,7 @@ def sensitivities(spec: Spec, result: Result) -> dict:
         Elasticities are (p / y)·dy/dp; for the conformity Ψ, p is the clearance Ψ − 1
         (a relative change of Ψ itself would read as a huge number).
     """
+    check_result(spec, result)
     structure, values = spec.structure, spec.values
     names = constraint_names(structure)
     lam = np.array([result.multipliers[n] for n in names])

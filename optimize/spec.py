@@ -14,15 +14,18 @@ import copy
 import dataclasses
 import math
 import os
+import sys
 import tomllib
+from collections.abc import Mapping
 
 import jax
 import numpy as np
 
-from tripodjax._checks import MAX_GAMMA0, check_layout_domain
+from tripodjax._checks import MAX_GAMMA0, check_layout_domain, real_scalar
 from tripodjax.hertz import MIN_CONFORMITY
 
 MAX_GAMMA0_DEG = math.degrees(MAX_GAMMA0)
+MAX_FLOAT = sys.float_info.max
 
 DEFAULT_SPEC_TOML = """\
 # The company validation workbook's tripod (seed §4.3) on the seed's nominal halfshaft,
@@ -231,13 +234,14 @@ class Spec:
     def __getitem__(self, section):
         return self.values[section]
 
-    def replace_values(self, **sections: dict) -> "Spec":
+    def replace_values(self, **sections: Mapping) -> "Spec":
         """A copy with some numbers changed, e.g. ``spec.replace_values(loads={"M_max": 1200.0})``.
 
         Checked like the file: an unknown section or key is an error, and the new numbers go
-        through the same rules.
+        through the same rules. Sections are any mappings; a number is any real scalar (Python,
+        NumPy, a 0-d JAX array), a list any sequence or 1-D array of them.
         """
-        return _check(_merge(self.resolved, _legacy(copy.deepcopy(sections))))
+        return _check(_merge(self.resolved, _legacy(_plain(sections))))
 
 
 jax.tree_util.register_pytree_node(Spec, _flatten_spec, _unflatten_spec)
@@ -246,17 +250,43 @@ jax.tree_util.register_pytree_node(Spec, _flatten_spec, _unflatten_spec)
 # --------------------------------------------------------------------------- checking
 
 
-def _is_number(value):
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
+def _plain(value):
+    """A value given in Python (``replace_values``) as the TOML reader gives it.
+
+    Mappings become dicts, tuples and 1-D arrays lists, real scalars of any array library
+    Python numbers; anything else stays as it is, for the checks to name.
+    """
+    if isinstance(value, Mapping):
+        return {key: _plain(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(item) for item in value]
+    if value is None or isinstance(value, (str, bytes, bool, int, float)):
+        return value
+    if hasattr(value, "__array__") or isinstance(value, np.generic):
+        try:
+            array = np.asarray(value)
+        except Exception:  # a tracer: left for the checks to name
+            return value
+        if array.dtype.kind in "biuf" and array.ndim <= 1:
+            return array.tolist()
+    return value
+
+
+def _real(where, value):
+    """A real number as a float, or SpecError (wrong type, beyond the float range)."""
+    try:
+        return real_scalar(where, value)
+    except TypeError:
+        raise SpecError(f"{where} = {value!r} must be a number") from None
+    except ValueError as error:
+        raise SpecError(str(error)) from None
 
 
 def _number(table, section, key, low=None, high=None, *, low_open=False, unit=""):
     """A finite number in [low, high] (low excluded when low_open)."""
     where = f"{section}.{key}"
     value = table[section][key]
-    if not _is_number(value):
-        raise SpecError(f"{where} = {value!r} must be a number")
-    return _in_range(where, float(value), low, high, low_open, unit)
+    return _in_range(where, _real(where, value), low, high, low_open, unit)
 
 
 def _in_range(where, value, low, high, low_open, unit):
@@ -285,12 +315,10 @@ def _numbers(table, section, key, low=None, high=None, *, low_open=False, unit="
         raise SpecError(f"{where} = {values!r} must be a non-empty list of numbers")
     if len(values) > MAX_LIST_LENGTH:
         raise SpecError(f"{where} has {len(values)} entries; at most {MAX_LIST_LENGTH} allowed")
-    out = []
-    for i, value in enumerate(values):
-        if not _is_number(value):
-            raise SpecError(f"{where}[{i}] = {value!r} must be a number")
-        out.append(_in_range(f"{where}[{i}]", float(value), low, high, low_open, unit))
-    return out
+    return [
+        _in_range(f"{where}[{i}]", _real(f"{where}[{i}]", value), low, high, low_open, unit)
+        for i, value in enumerate(values)
+    ]
 
 
 def _string(table, section, key, allowed):
@@ -313,8 +341,15 @@ def _integer(table, key):
         raise SpecError(f"{where} = {value!r} must be an integer")
     if not low <= value <= high or (key == "n_theta" and value % 6):
         limits = f"an integer from {low} to {high}" + (f", {extra}" if extra else "")
-        raise SpecError(f"{where} = {value!r} is not allowed: {limits}")
+        raise SpecError(f"{where} = {_integer_text(value)} is not allowed: {limits}")
     return value
+
+
+def _integer_text(value):
+    """An integer for a message; a huge one by its size (repr fails beyond 4300 digits)."""
+    if isinstance(value, int) and abs(value) > 10**12:
+        return f"an integer of about {int(value.bit_length() * math.log10(2)) + 1} digits"
+    return repr(value)
 
 
 def _shares(where, shares):
@@ -334,7 +369,7 @@ def _merge(default, override, path=()):
         if key not in default and section not in ("objective", "constraints", "bounds", "friction"):
             raise SpecError(f"unknown key {where}; allowed here: {', '.join(sorted(default))}")
         if isinstance(default.get(key), dict):
-            if not isinstance(value, dict):
+            if not isinstance(value, Mapping):
                 raise SpecError(f"{where} must be a table")
             merged[key] = _merge(default[key], value, path + (key,))
         else:
@@ -388,9 +423,21 @@ def _objective(table):
     terms = tuple(q for q in QUANTITIES if q in weights)
     if not any(weights[q] != 0 for q in terms):
         raise SpecError("objective has no non-zero weight w_<q>; give at least one")
+    if not any(weights[q] > 0 for q in terms):
+        given = ", ".join(f"w_{q} = {weights[q]:g}" for q in terms if weights[q])
+        raise SpecError(
+            f"objective has no positive weight ({given}): minimising it maximises every term, "
+            "which drives the design to its bounds; give at least one w_<q> > 0"
+        )
     for q in terms:
         if q not in refs:
             raise SpecError(f"objective.w_{q} needs objective.{q}_ref (> 0, in {QUANTITIES[q][0]})")
+    for q in terms:
+        if not math.isfinite(weights[q] / refs[q]):
+            raise SpecError(
+                f"objective.w_{q} / objective.{q}_ref = {weights[q]:g} / {refs[q]:g} overflows: "
+                f"allowed: |w_{q} / {q}_ref| ≤ {MAX_FLOAT:.4g}"
+            )
     values = {f"w_{q}": weights[q] for q in terms} | {f"{q}_ref": refs[q] for q in terms}
     return terms, values
 
@@ -419,7 +466,7 @@ def _bounds(table, fixed):
     for key, value in given.items():
         if key not in VARIABLES:
             raise SpecError(f"unknown key bounds.{key}; allowed: {', '.join(VARIABLES)}")
-        if value == "fixed":
+        if isinstance(value, str) and value == "fixed":
             continue
         if not isinstance(value, list) or len(value) != 2:
             raise SpecError(f'bounds.{key} = {value!r} must be a pair [lo, hi] or "fixed"')
@@ -468,7 +515,9 @@ def _check(table):
     hertz["conformity"] = fixed["conformity"]
     n_rollers = table["hertz"]["n_rollers"]
     if not isinstance(n_rollers, int) or isinstance(n_rollers, bool) or not 1 <= n_rollers <= 12:
-        raise SpecError(f"hertz.n_rollers = {n_rollers!r} is not allowed: an integer from 1 to 12")
+        raise SpecError(
+            f"hertz.n_rollers = {_integer_text(n_rollers)} is not allowed: an integer from 1 to 12"
+        )
     v["hertz"] = hertz
     life = {"required_km": _number(table, "life", "required_km", 0.0, low_open=True, unit=" km")}
     units = {"torque": " N·m", "speed": " rpm", "vehicle_speed": " km/h", "share": ""}
@@ -549,12 +598,26 @@ def _check(table):
 
 
 def parse_spec(text: str, source: str = "spec") -> Spec:
-    """Check a TOML text (merged over the default: a file need only hold what it changes)."""
+    """Check a TOML text (merged over the default: a file need only hold what it changes).
+
+    Raises ``TypeError`` unless ``text`` is a ``str`` (bytes: decode them, or use
+    [`load_spec`][tripodjax.optimize.load_spec] on the file) and ``source`` a ``str``.
+    """
+    if not isinstance(text, str):
+        hint = " (decode bytes first: text.decode('utf-8'))" if isinstance(text, bytes) else ""
+        raise TypeError(
+            f"text = {text!r:.60} is not allowed; allowed: the TOML text as a str{hint} "
+            f"(got a {type(text).__name__})"
+        )
+    if not isinstance(source, str):
+        raise TypeError(f"source = {source!r:.60} is not allowed; allowed: a str (a file name)")
     if text.startswith("\ufeff"):  # a UTF-8 byte-order mark, as Windows editors write
         text = text[1:]
     try:
         given = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
+        raise SpecError(f"{source} is not valid TOML: {error}") from None
+    except ValueError as error:  # e.g. an integer of more than 4300 digits
         raise SpecError(f"{source} is not valid TOML: {error}") from None
     return _check(_merge(tomllib.loads(DEFAULT_SPEC_TOML), _legacy(given)))
 
@@ -563,6 +626,11 @@ def load_spec(path: str | os.PathLike | None = None) -> Spec:
     """The specification in the TOML file at ``path``, or the embedded default when None."""
     if path is None:
         return parse_spec(DEFAULT_SPEC_TOML, "the default spec")
+    if not isinstance(path, (str, os.PathLike)):  # an int would be read as a file descriptor
+        raise TypeError(
+            f"path = {path!r:.60} is not allowed; allowed: a file path (str or os.PathLike) or "
+            f"None for the default spec (got a {type(path).__name__})"
+        )
     try:
         with open(path, "rb") as f:
             data = f.read()

@@ -31,11 +31,56 @@ def test_pytree_roundtrip_jit_and_vmap():
     np.testing.assert_allclose(ratio, [0.05, 0.06])
 
 
-def test_traced_and_array_fields_are_not_range_checked():
-    # Out-of-domain values inside arrays pass: the range check is for scalars; sweep checks
-    # array fields element by element.
-    Layout(jnp.array(-1.0), jnp.array(500.0), jnp.array(2.0))
+def test_only_traced_fields_are_not_range_checked():
     jax.jit(lambda g: Layout(25.0, 500.0, g).gamma0)(jnp.array(1.5))
+    jax.vmap(lambda r: Layout(r, 500.0, 0.3).R)(jnp.array([-1.0, 200.0]))
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda v, good: float(v),
+        lambda v, good: np.float32(v),
+        lambda v, good: np.asarray(v),
+        lambda v, good: jnp.asarray(v),
+        lambda v, good: jnp.asarray([good, v, good]),
+        lambda v, good: np.asarray([[good, v]]),
+    ],
+)
+@pytest.mark.parametrize(
+    "field, value, fragment",
+    [
+        ("R", -25.0, "R > 0 mm"),
+        ("R", 125.0, "R/l ≤ 0.2"),
+        ("gamma0", 1.2, "π/4"),
+        ("l", math.nan, "l > 0 mm"),
+    ],
+)
+def test_every_concrete_field_is_checked_element_by_element(make, field, value, fragment):
+    fields = dict(R=25.0, l=500.0, gamma0=0.3)
+    fields[field] = make(value, fields[field])
+    with pytest.raises(ValueError, match=fragment) as info:
+        Layout(**fields)
+    if np.ndim(fields[field]):  # the first bad index is named
+        index = "1" if np.ndim(fields[field]) == 1 else "0,1"
+        assert f"{field}[{index}]" in str(info.value)
+
+
+@pytest.mark.parametrize(
+    "fields, fragment",
+    [
+        (dict(R=np.full(3, 25.0), l=np.full(2, 500.0), gamma0=0.3), "R (3,), l (2,), gamma0 ()"),
+        (dict(R=np.zeros((2, 3)) + 25, l=np.full(2, 500.0), gamma0=0.3), "broadcast together"),
+        (dict(R=np.zeros(0), l=500.0, gamma0=0.3), "Layout.R is empty"),
+        (dict(R=25.0, l=jnp.zeros((0, 2)), gamma0=0.3), "Layout.l is empty"),
+    ],
+)
+def test_field_shapes_must_broadcast_and_not_be_empty(fields, fragment):
+    with pytest.raises(ValueError, match=fragment.replace("(", r"\(").replace(")", r"\)")):
+        Layout(**fields)
+    traced = {k: v for k, v in fields.items() if np.ndim(v)}
+    with pytest.raises(ValueError, match="Layout"):  # shapes are static: checked under jit too
+        jax.jit(lambda kw: Layout(**{**fields, **kw}))(traced)
 
 
 def test_jax_rebuilds_layouts_without_the_checks():

@@ -218,26 +218,32 @@ def test_numpy_peer_solves_the_same_equations():
         np.testing.assert_allclose(peer[name], ours[name], rtol=1e-11)
 
 
+def _unchecked(R, l, gamma0):
+    """A Layout that skipped its own checks, as JAX rebuilds one: sweep checks it again."""
+    treedef = jax.tree_util.tree_structure(Layout(25.0, 500.0, 0.2))
+    return jax.tree_util.tree_unflatten(treedef, [np.array(R), np.array(l), np.array(gamma0)])
+
+
 @pytest.mark.parametrize(
     "build, kwargs, message",
     [
         (
-            lambda: Layout(np.array([25.0, -3.0]), np.array([500.0, 500.0]), np.array([0.2, 0.2])),
+            lambda: _unchecked([25.0, -3.0], [500.0, 500.0], [0.2, 0.2]),
             {},
             "layouts.R[1] = -3.0 is outside the allowed range: R > 0 mm",
         ),
         (
-            lambda: Layout(np.array([25.0, 30.0]), np.array([500.0, 100.0]), np.array([0.2, 0.2])),
+            lambda: _unchecked([25.0, 30.0], [500.0, 100.0], [0.2, 0.2]),
             {},
             "layouts.R[1] / layouts.l[1] = 0.3 is outside the allowed range: R/l ≤ 0.2",
         ),
         (
-            lambda: Layout(np.array([25.0]), np.array([500.0]), np.array([0.9])),
+            lambda: _unchecked([25.0], [500.0], [0.9]),
             {},
             "layouts.gamma0[0] = 0.9 is outside the allowed range",
         ),
         (
-            lambda: Layout(np.array([25.0, 30.0]), np.array([500.0]), np.array([0.2, 0.2])),
+            lambda: _unchecked([25.0, 30.0], [500.0], [0.2, 0.2]),
             {},
             "1-D arrays of one length",
         ),

@@ -4,23 +4,32 @@ One rule per domain, written once and called by every layer with its own names:
 
 - `check_real` — the type rule (real numbers or arrays of them; never a
   ``str``, ``bool``, ``None``, complex number or object);
+- `real_scalar` — the type rule for one real number (a Python, NumPy or JAX
+  scalar, a 0-d array; never a ``bool``), as a Python float, also beyond the
+  float range (a huge Python ``int``);
 - `check_instance` — the type rule for object arguments (a Layout, a
   FrictionParams…);
 - `check`, `check_finite`, `check_positive`, `check_non_negative`,
   `check_shares`, `check_integer` — value rules;
 - `check_layout_domain` — the halfshaft layout domain (R, l, γ0), used by
   [`Layout`][tripodjax.layout.Layout], [`sweep`][tripodjax.sweep.sweep] and the optimiser's spec;
-- `check_choice` — every mode/choice argument.
+- `check_choice` — every mode/choice argument;
+- `check_shapes` — fields that broadcast together and are not empty (a Layout's);
+  `check_sweep_batch` — what a sweep's torque and devices must be beside its layouts.
 
 Every error is a ``ValueError`` (or ``TypeError`` for a wrong type) that names
 the argument, the offending value (with its index inside an array) and what is
-allowed. Traced values (inside ``jit``/``vmap``/``grad``) are never checked:
-there the functions propagate NaN and/or a result code instead.
+allowed. Traced values (inside ``jit``/``vmap``/``grad``) are never value-checked:
+there the functions propagate NaN and/or a result code instead. Every
+concrete value is: a Python or NumPy number, a NumPy array or a concrete JAX
+array, 0-d or not, element by element (the error names the first bad index).
+Shapes are checked for traced values too (they are static).
 """
 
 import dataclasses
 import math
 import numbers
+import sys
 import typing
 
 import jax
@@ -91,13 +100,18 @@ def check_real(name, value, *, allowed="a real number or an array of real number
         return None
     if value is None or isinstance(value, (str, bytes, bool, np.bool_, complex, dict, set)):
         raise TypeError(_not_allowed(name, value, allowed))
+    if _beyond_float_range(value):
+        raise _beyond(name, value)
     if isinstance(value, (list, tuple)):
         flat = list(_flatten(value))
         bad = [v for v in flat if not _is_real_scalar(v)]
         if bad:
             raise TypeError(
-                f"{name} = {value!r} holds {bad[0]!r} ({_type_name(bad[0])}); allowed: {allowed}"
+                f"{name} = {_show(value)} holds {_show(bad[0])} ({_type_name(bad[0])}); allowed: {allowed}"
             )
+        for i, v in enumerate(flat):
+            if _beyond_float_range(v):
+                raise _beyond(f"{name}[{i}]" if np.ndim(value) == 1 else name, v)
     try:
         array = np.asarray(value)
     except Exception:
@@ -105,6 +119,56 @@ def check_real(name, value, *, allowed="a real number or an array of real number
     if array.dtype.kind not in "fiu":
         raise TypeError(f"{name} = {_show(value)} has dtype {array.dtype}; allowed: {allowed}")
     return array
+
+
+FLOAT_MAX = sys.float_info.max
+
+
+def _beyond_float_range(value):
+    """True for a Python ``int`` too large for a float (e.g. a TOML integer of 400 digits)."""
+    return isinstance(value, int) and not isinstance(value, bool) and abs(value) > FLOAT_MAX
+
+
+def _show_int(value):
+    digits = int(value.bit_length() * math.log10(2)) + 1
+    return f"{'-' if value < 0 else ''}an integer of about {digits} digits"
+
+
+def _beyond(name, value):
+    return ValueError(
+        f"{name} = {_show_int(value)} is beyond the float range: |{_short(name)}| ≤ {FLOAT_MAX:.4g}"
+    )
+
+
+def real_scalar(name, value, allowed="a real number"):
+    """The type rule for one real number: ``value`` as a Python ``float``.
+
+    Accepts Python ``int``/``float``, any ``numbers.Real`` (NumPy scalars such as
+    ``np.float32``), and 0-d arrays of a real dtype from any array library (NumPy,
+    concrete JAX arrays). ``TypeError`` naming ``name`` for ``bool``, ``None``,
+    strings, complex numbers, arrays of another shape or dtype, tracers and other
+    objects; ``ValueError`` for an integer beyond the float range. Values are not
+    range-checked (see `check_range`).
+    """
+    if isinstance(value, jax.core.Tracer):
+        raise TypeError(f"{name} is a traced value; allowed: {allowed} (a concrete value)")
+    if isinstance(value, (bool, np.bool_)) or value is None or isinstance(value, (str, bytes)):
+        raise TypeError(_not_allowed(name, value, allowed))
+    if _beyond_float_range(value):
+        raise _beyond(name, value)
+    if isinstance(value, numbers.Real):
+        return float(value)
+    try:
+        array = np.asarray(value)
+    except Exception:
+        raise TypeError(_not_allowed(name, value, allowed)) from None
+    if array.dtype.kind not in "fiu":
+        raise TypeError(_not_allowed(name, value, allowed))
+    if array.ndim:
+        raise TypeError(
+            f"{name} = {_show(value)} has shape {array.shape}; allowed: {allowed} (one value, shape ())"
+        )
+    return float(array)
 
 
 def _flatten(items):
@@ -261,6 +325,63 @@ def check_choice(name, value, allowed):
             f"{name} = {value!r} is not allowed; allowed: {', '.join(repr(a) for a in allowed)}"
         )
     return value
+
+
+# --------------------------------------------------------------------------- shapes
+
+
+def check_shapes(shapes, prefix="", allowed="numbers, or arrays whose shapes broadcast together"):
+    """``ValueError`` unless the shapes ``{name: shape}`` broadcast together and none is empty.
+
+    E.g. ``check_shapes({"R": (3,), "l": (2,), "gamma0": ()}, prefix="Layout.")`` raises
+    ``"Layout fields have shapes R (3,), l (2,), gamma0 (); allowed: …"``. Returns the
+    broadcast shape.
+    """
+    for name, shape in shapes.items():
+        if math.prod(shape) == 0:
+            raise ValueError(
+                f"{prefix}{name} is empty (shape {tuple(shape)}); allowed: a number or a "
+                "non-empty array"
+            )
+    try:
+        return np.broadcast_shapes(*shapes.values())
+    except ValueError:
+        listed = ", ".join(f"{name} {tuple(shape)}" for name, shape in shapes.items())
+        owner = prefix.rstrip(".") or "the"
+        raise ValueError(f"{owner} fields have shapes {listed}; allowed: {allowed}") from None
+
+
+def check_sweep_batch(n, torque, devices):
+    """A sweep of ``n`` layouts: at least one, one ``torque`` for all, a non-empty ``devices``.
+
+    ``torque`` (None or a number [N·m]) must have shape (): the same torque for every
+    layout. ``devices`` is None (every visible device) or a non-empty sequence of
+    ``jax.Device``. Returns the devices as a list.
+    """
+    if n < 1:
+        raise ValueError("layouts is empty (0 layouts); allowed: a Layout of at least one layout")
+    if torque is not None and not isinstance(torque, jax.core.Tracer) and np.ndim(torque) != 0:
+        raise ValueError(
+            f"torque has shape {np.shape(torque)}; allowed: one torque [N·m] for every layout "
+            "(a number, shape ())"
+        )
+    if devices is None:
+        return jax.devices()
+    if isinstance(devices, (str, bytes)) or not isinstance(devices, typing.Iterable):
+        raise TypeError(_not_allowed("devices", devices, "a non-empty sequence of jax.Device"))
+    devices = list(devices)
+    if not devices:
+        raise ValueError(
+            "devices = [] is empty; allowed: a non-empty sequence of jax.Device, or None for "
+            "every visible device"
+        )
+    bad = [d for d in devices if not isinstance(d, jax.Device)]
+    if bad:
+        raise TypeError(
+            f"devices holds {_show(bad[0])} ({_type_name(bad[0])}); allowed: a non-empty "
+            "sequence of jax.Device (e.g. jax.devices())"
+        )
+    return devices
 
 
 # --------------------------------------------------------------------------- the layout domain

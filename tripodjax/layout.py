@@ -14,7 +14,9 @@ from tripodjax._checks import (
     check_instance,
     check_layout_domain,
     check_real,
+    check_shapes,
     checked_pytree_dataclass,
+    concrete,
 )
 
 __all__ = ["MAX_GAMMA0", "MAX_R_OVER_L", "TABLE_2_1", "Layout", "check_layout", "seed_case"]
@@ -42,15 +44,18 @@ class Layout:
     JAX rebuilds instances without re-running the checks).
 
     Fields are real numbers or arrays of real numbers: a ``str``, ``bool``,
-    ``None``, complex number or list of those raises ``TypeError``. Scalar
-    fields (Python or NumPy numbers) are checked against the documented
+    ``None``, complex number or list of those raises ``TypeError``. Their
+    shapes must broadcast together (numbers, or arrays of one shape, e.g. a
+    batch for [`sweep`][tripodjax.sweep.sweep]) and none may be empty. Every
+    concrete field — a Python or NumPy number, a NumPy array, a concrete JAX
+    array, 0-d or not — is checked element by element against the documented
     domain ``R > 0`` mm, ``l > 0`` mm, ``R/l ≤ 0.2``, ``0 ≤ gamma0 ≤ π/4``
     (45°), all finite — the one rule of
-    `tripodjax._checks.check_layout_domain` — and raise ``ValueError``
-    naming the field, the value and the allowed range. Array fields (a batch
-    for [`sweep`][tripodjax.sweep.sweep], which checks them element by element) and
-    traced fields are not range-checked here; inside ``jit`` a NaN field
-    propagates as NaN (and a non-successful result code of the solve).
+    `tripodjax._checks.check_layout_domain` — and raises ``ValueError``
+    naming the field (and the first bad index), the value and the allowed
+    range. Only traced fields (inside ``jit``/``vmap``/``grad``) are not
+    range-checked; there a NaN field propagates as NaN (and a non-successful
+    result code of the solve).
 
     Use [`from_degrees`][tripodjax.layout.Layout.from_degrees] to give ``gamma0`` in degrees.
     """
@@ -63,8 +68,9 @@ class Layout:
         values = {"R": self.R, "l": self.l, "gamma0": self.gamma0}
         for name, value in values.items():
             check_real(f"Layout.{name}", value)
+        check_shapes({name: np.shape(value) for name, value in values.items()}, "Layout.")
         check_layout_domain(
-            **{name: value for name, value in values.items() if _is_scalar(value)},
+            **{name: value for name, value in values.items() if concrete(value) is not None},
             prefix="Layout.",
         )
 
@@ -72,8 +78,9 @@ class Layout:
     def from_degrees(cls, R: ArrayLike, l: ArrayLike, gamma0_deg: ArrayLike) -> "Layout":
         """Build a Layout with the layout articulation angle in degrees (0 ≤ gamma0_deg ≤ 45)."""
         check_real("gamma0_deg", gamma0_deg)
-        if _is_scalar(gamma0_deg):
+        if concrete(gamma0_deg) is not None:
             check_layout_domain(gamma0=gamma0_deg, names={"gamma0": "gamma0_deg"}, degrees=True)
+        if _is_scalar(gamma0_deg):
             return cls(R, l, math.radians(gamma0_deg))
         return cls(R, l, gamma0_deg * (math.pi / 180.0))
 

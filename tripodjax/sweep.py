@@ -26,6 +26,7 @@ from tripodjax._checks import (
     check_layout_domain,
     check_non_negative,
     check_positive,
+    check_sweep_batch,
 )
 from tripodjax.friction import (
     DEFAULT_STROKE_WIDTH,
@@ -206,7 +207,7 @@ def sweep(
     check_positive(gaf_width=gaf_width)
     status = bool(throw) or any(name in STATUS_OUTPUTS for name in outputs)
     computed = outputs + (("result",) if status and "result" not in outputs else ())
-    devices = list(devices) if devices is not None else jax.devices()
+    devices = check_sweep_batch(n, torque, devices)
     mesh = jax.sharding.Mesh(np.array(devices), ("layouts",))
     sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("layouts"))
     backend = devices[0].platform
