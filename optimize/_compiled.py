@@ -5,7 +5,8 @@ command wraps its work in [`export_cache`][tripodjax.optimize._compiled.export_c
 each function is then exported once (``jax.export``) per spec structure, argument
 shapes, versions and package source, and a later process loads that export instead
 of tracing the Python again; with JAX's persistent compilation cache beside it, a
-warm command neither traces nor compiles.
+warm command neither traces nor compiles. An entry holds its own key and is checked
+against the call's arguments when loaded; any mismatch removes it and exports again.
 """
 
 import contextlib
@@ -98,19 +99,57 @@ class _ExportCache:
     def call(self, jitted, static, *args):
         key = self._key(jitted, static, args)
         exported = self.loaded.get(key)
+        from_disk = False
         if exported is None:
-            exported = self._load(key) or self._export(key, jitted, static, args)
+            exported = self._load(key, args)
+            from_disk = exported is not None
+            if not from_disk:
+                exported = self._export(key, jitted, static, args)
             self.loaded[key] = exported
         if exported is False:  # this function cannot be exported here: call it directly
             return jitted(static, *args)
-        return exported.call(*args)
-
-    def _load(self, key):
+        if not from_disk:
+            return exported.call(*args)
         try:
-            data = (self.directory / f"{key}.jaxexport").read_bytes()
-            return jax.export.deserialize(bytearray(data))
-        except Exception:  # absent, unreadable, corrupt or from another jaxlib: export again
+            return exported.call(*args)
+        except Exception:  # an entry that passed the checks and still does not fit: replace it
+            self._remove(key)
+            self.loaded[key] = exported = self._export(key, jitted, static, args)
+            return jitted(static, *args) if exported is False else exported.call(*args)
+
+    def _path(self, key):
+        return self.directory / f"{key}.jaxexport"
+
+    def _remove(self, key):
+        with contextlib.suppress(OSError):
+            self._path(key).unlink()
+
+    def _load(self, key, args):
+        """The entry under ``key`` if it is this key's export for these arguments, else None.
+
+        An entry holds its own key before the serialized export; a file of another key
+        (copied, swapped or truncated), one that does not deserialize, or one whose input
+        tree and shapes are not those of ``args`` is removed (exported again by the caller).
+        """
+        path = self._path(key)
+        try:
+            data = path.read_bytes()
+        except OSError:  # absent or unreadable
             return None
+        header = _header(key)
+        try:
+            if not data.startswith(header):
+                raise ValueError("the entry is not this key's")
+            exported = jax.export.deserialize(bytearray(data[len(header) :]))
+            leaves, treedef = jax.tree_util.tree_flatten((args, {}))
+            signature = [(tuple(jax.numpy.shape(a)), jax.numpy.result_type(a)) for a in leaves]
+            stored = [(tuple(a.shape), a.dtype) for a in exported.in_avals]
+            if exported.in_tree != treedef or stored != signature:
+                raise ValueError("the entry takes other arguments")
+        except Exception:  # corrupt, from another jaxlib, another key's, other arguments
+            self._remove(key)
+            return None
+        return exported
 
     def _export(self, key, jitted, static, args):
         try:
@@ -122,8 +161,14 @@ class _ExportCache:
             self.directory.mkdir(parents=True, exist_ok=True)
             fd, tmp = tempfile.mkstemp(prefix=".export.", dir=self.directory)
             with os.fdopen(fd, "wb") as f:
+                f.write(_header(key))
                 f.write(data)
-            os.replace(tmp, self.directory / f"{key}.jaxexport")
+            os.replace(tmp, self._path(key))
         except OSError:
             pass  # a read-only cache only costs time
         return exported
+
+
+def _header(key):
+    """What an entry starts with: the format and its own key (checked when it is loaded)."""
+    return f"tripodjax-export 1 {key}\n".encode()

@@ -137,10 +137,13 @@ BAD_COUNTS = st.sampled_from([0, -1, -5, -3]) | st.sampled_from(
 BAD_COUNT_TYPES = st.sampled_from([True, False, "3", None, [3], 3 + 0j])
 
 
+HUGE = st.sampled_from([10**400, -(10**400)])  # Python integers beyond the float range
+
+
 def bad_values(kind):
     """Every bad value for an argument of ``kind``: its bad numbers and the wrong types."""
     if kind == "count":  # an integer ≥ 1
-        return BAD_COUNTS | BAD_COUNT_TYPES
+        return BAD_COUNTS | BAD_COUNT_TYPES | HUGE
     if kind == "shares":
         return WRONG_TYPES | st.sampled_from(
             [[0.5, 0.6, 0.0], [-0.5, 1.0, 0.5], [math.nan, 0.5, 0.5], [math.inf, 0.0, 0.0]]
@@ -149,7 +152,33 @@ def bad_values(kind):
         return st.sampled_from(["", "nope", "Newton", "NEWTON ", None, 1, True, ["newton"]])
     if kind == "object":
         return st.sampled_from([None, "N", 1.0, {"R": 25.0}, [25.0, 500.0, 0.3]])
-    return WRONG_TYPES | bad_numbers(kind)
+    return WRONG_TYPES | bad_numbers(kind) | HUGE
+
+
+NUMBER_KINDS = (
+    "positive",
+    "non_negative",
+    "finite",
+    "unit",
+    "conformity",
+    "gamma0",
+    "gamma0_deg",
+    "working_angle",
+    "pressure_angle",
+    "helix_angle",
+    "poisson",
+)
+# A bad number as a concrete array of any kind: checked like a Python number, never skipped
+# (only traced values pass unchecked).
+AS_ARRAYS = st.sampled_from(
+    [
+        ("numpy 0-d", np.asarray),
+        ("numpy scalar", np.float64),
+        ("jax 0-d", jnp.asarray),
+        # float32 only for non-finite values: rounding may move an edge value into the domain
+        ("jax float32 0-d", lambda v: jnp.asarray(v, jnp.float32) if not np.isfinite(v) else v),
+    ]
+)
 
 
 def _assert_rejected(call, name, value):
@@ -456,6 +485,84 @@ def test_every_bad_argument_raises_an_error_that_names_it(function_name, argumen
     _assert_rejected(lambda: function(**kwargs), _display_name(function_name, argument), value)
 
 
+ARRAY_CASES = [(f, a) for f, a in CASES if BOUNDARY[f][2][a] in NUMBER_KINDS]
+
+
+@pytest.mark.parametrize(
+    "function_name, argument", ARRAY_CASES, ids=[f"{f}-{a}" for f, a in ARRAY_CASES]
+)
+@FUZZ
+@given(data=st.data())
+def test_every_bad_number_as_a_concrete_array_names_the_argument(function_name, argument, data):
+    function, kwargs = _good_kwargs(function_name)
+    value = data.draw(bad_numbers(BOUNDARY[function_name][2][argument]), label=argument)
+    _, wrap = data.draw(AS_ARRAYS, label="as")
+    kwargs[argument] = wrap(value)
+    _assert_rejected(lambda: function(**kwargs), _display_name(function_name, argument), value)
+
+
+@FUZZ
+@given(
+    field=st.sampled_from(["R", "l", "gamma0"]),
+    index=st.integers(0, 4),
+    value=bad_numbers("positive") | st.just(200.0) | st.just(0.9),
+    library=st.sampled_from([np.asarray, jnp.asarray]),
+)
+def test_layout_arrays_are_checked_element_by_element(field, index, value, library):
+    good = {"R": 25.0, "l": 500.0, "gamma0": 0.3}
+    if value == 0.9 and field != "gamma0" or value == 200.0 and field != "R":
+        return  # in the domain for this field
+    array = np.full(5, good[field])
+    array[index] = value
+    fields = {**good, field: library(array)}
+    with pytest.raises(ValueError, match=rf"Layout\.{field}\[{index}\]"):
+        tj.Layout(**fields)
+
+
+@FUZZ
+@given(
+    shapes=st.lists(
+        st.lists(st.integers(0, 4), min_size=0, max_size=3).map(tuple), min_size=3, max_size=3
+    )
+)
+def test_layout_field_shapes_broadcast_and_are_not_empty_or_the_error_says_so(shapes):
+    good = {"R": 25.0, "l": 500.0, "gamma0": 0.3}
+    fields = {k: np.full(shape, v) for (k, v), shape in zip(good.items(), shapes, strict=True)}
+    try:
+        ok = 0 not in np.broadcast_shapes(*shapes) and all(0 not in s for s in shapes)
+    except ValueError:
+        ok = False
+    if ok:
+        tj.Layout(**fields)
+        return
+    with pytest.raises(ValueError, match="Layout") as info:
+        tj.Layout(**fields)
+    assert "empty" in str(info.value) or "broadcast together" in str(info.value)
+
+
+def _unchecked_layouts(R, l, gamma0):
+    """Layouts that skipped their checks (as JAX rebuilds them): sweep checks them again."""
+    treedef = jax.tree_util.tree_structure(_layout())
+    return jax.tree_util.tree_unflatten(treedef, [np.asarray(a, float) for a in (R, l, gamma0)])
+
+
+@pytest.mark.parametrize(
+    "call, fragment",
+    [
+        (lambda: tj.sweep(_layouts(3), torque=np.full(3, 100.0), outputs=("gaf_rms",)), "shape ()"),
+        (lambda: tj.sweep(_layouts(3), torque=[100.0, 50.0], outputs=("gaf_rms",)), "shape ()"),
+        (lambda: tj.sweep(_layouts(3), n_theta=36, devices=[]), "devices = [] is empty"),
+        (lambda: tj.sweep(_layouts(3), n_theta=36, devices=["cpu"]), "jax.Device"),
+        (lambda: tj.sweep(_layouts(3), n_theta=36, devices=5), "devices"),
+        (lambda: tj.sweep(_unchecked_layouts([], [], []), n_theta=36), "empty"),
+    ],
+)
+def test_sweep_shapes_and_devices_say_what_is_allowed(call, fragment):
+    with pytest.raises((ValueError, TypeError)) as info:
+        call()
+    assert fragment in str(info.value)
+
+
 # --------------------------------------------------------------------------- extra boundary cases
 
 
@@ -687,3 +794,125 @@ def test_solve_halfshaft_at_a_nan_theta_is_not_successful():
     code = getattr(solution, "result", None)
     if code is not None:
         assert np.all(np.asarray(code)[1:3] != int(hertz.RESULTS.successful))
+
+
+# --------------------------------------------------------------------------- the optimiser's objects
+
+
+def _optimize():
+    from tripodjax import optimize
+
+    return optimize
+
+
+def _result_of(spec):
+    """A Result of ``spec``'s structure, as ``solve`` returns it (no solve: only its shape)."""
+    from tripodjax.optimize.problem import constraint_names
+    from tripodjax.optimize.solver import Result
+
+    names = constraint_names(spec.structure)
+    design = {k: 1.0 for k in spec.structure.free}
+    return Result(
+        design=design,
+        objective=1.0,
+        constraints={n: {"margin": 0.1} for n in names},
+        quantities={},
+        kkt_residual=0.0,
+        kkt_converged=True,
+        halfshaft_converged=True,
+        hertz_converged=True,
+        converged=True,
+        feasible=True,
+        result="successful",
+        multipliers={n: 0.0 for n in names},
+        history={},
+        starts=[{"design": design}],
+        fidelity="newton",
+        x=np.ones(len(spec.structure.free)),
+    )
+
+
+OBJECTS = [None, {}, "spec", 5, [1.0], _Opaque()]
+
+
+@pytest.mark.parametrize("bad", OBJECTS, ids=repr)
+@pytest.mark.parametrize(
+    "function",
+    ["evaluate", "evaluate_catalogue", "constraint_landscape", "sensitivities"],
+)
+def test_optimiser_functions_name_a_spec_of_the_wrong_type(function, bad):
+    optimize = _optimize()
+    spec = optimize.load_spec()
+    calls = {
+        "evaluate": lambda: optimize.evaluate(bad, {"R": 21.3, "d_roller": 27.8}),
+        "evaluate_catalogue": lambda: optimize.evaluate_catalogue(bad),
+        "constraint_landscape": lambda: optimize.constraint_landscape(bad, [20.0], [30.0]),
+        "sensitivities": lambda: optimize.sensitivities(bad, _result_of(spec)),
+    }
+    with pytest.raises(TypeError, match="^spec = .*allowed: a Spec"):
+        calls[function]()
+
+
+@pytest.mark.parametrize("bad", [None, [21.3, 27.8], "R", 5, (("R", 21.3),)], ids=repr)
+def test_evaluate_names_a_design_that_is_no_mapping(bad):
+    optimize = _optimize()
+    with pytest.raises(TypeError, match="^design = .*allowed: a mapping"):
+        optimize.evaluate(optimize.load_spec(), bad)
+
+
+@pytest.mark.parametrize("bad", [None, {}, "result", 1.0], ids=repr)
+def test_sensitivities_names_a_result_of_the_wrong_type(bad):
+    optimize = _optimize()
+    with pytest.raises(TypeError, match="^result = .*allowed: the Result"):
+        optimize.sensitivities(optimize.load_spec(), bad)
+
+
+@pytest.mark.parametrize(
+    "other",
+    [
+        "[bounds]\nconformity = [1.002, 1.008]",  # another free variable
+        "[constraints]\nmax_outer_diameter = 90.0",  # another constraint
+        '[bounds]\nd_roller = "fixed"',
+    ],
+)
+def test_sensitivities_of_another_specs_result_is_a_type_error(other):
+    optimize = _optimize()
+    result = _result_of(optimize.parse_spec(other))
+    with pytest.raises(TypeError, match="^result is the Result of another spec"):
+        optimize.sensitivities(optimize.load_spec(), result)
+
+
+@pytest.mark.parametrize(
+    "R, d",
+    [
+        (jnp.asarray(21.3), jnp.asarray(27.8)),
+        (np.float32(21.3), np.float64(27.8)),
+        (np.asarray(21.3), 27.8),
+        (jnp.asarray(21.3, jnp.float32), np.int64(28)),
+    ],
+    ids=["jax 0-d", "numpy scalars", "numpy 0-d", "jax float32, numpy int"],
+)
+def test_evaluate_takes_real_scalars_of_any_library_in_any_mapping(R, d):
+    import types
+
+    optimize = _optimize()
+    spec = optimize.load_spec()
+    plain = optimize.evaluate(spec, {"R": float(R), "d_roller": float(d)})
+    given = optimize.evaluate(spec, types.MappingProxyType({"R": R, "d_roller": d}))
+    assert given == plain
+
+
+@pytest.mark.parametrize(
+    "value, error, fragment",
+    [
+        (10**400, ValueError, "beyond the float range"),
+        (jnp.asarray([21.3, 22.0]), TypeError, "shape (2,)"),
+        (True, TypeError, "design['R'] = True"),
+        ("21.3", TypeError, "design['R'] = '21.3'"),
+    ],
+)
+def test_evaluate_design_values_that_are_no_real_number_name_the_key(value, error, fragment):
+    optimize = _optimize()
+    with pytest.raises(error) as info:
+        optimize.evaluate(optimize.load_spec(), {"R": value, "d_roller": 27.8})
+    assert fragment in str(info.value)

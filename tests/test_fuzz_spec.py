@@ -8,8 +8,12 @@ test_optimize_cli.py), so this covers what the CLI would print for each case.
 """
 
 import math
+import sys
 import tomllib
+import types
 
+import jax.numpy as jnp
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -41,6 +45,8 @@ BAD_SCALARS = [
     True,
     [],
     2.5,
+    10**400,  # a valid TOML integer beyond the float range
+    -(10**400),
 ]
 
 
@@ -73,6 +79,8 @@ def _spec_text(path, value):
 def _never_allowed(default, value):
     """A value no key accepts in place of ``default``: non-finite, or of the wrong kind."""
     if isinstance(value, float) and not math.isfinite(value):
+        return True
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) > sys.float_info.max:
         return True
     number = isinstance(default, (int, float)) and not isinstance(default, bool)
     if number:
@@ -131,6 +139,7 @@ def test_every_list_element_with_bad_values(path, default):
     value=st.one_of(
         st.floats(allow_nan=True, allow_infinity=True),
         st.integers(min_value=-(2**63), max_value=2**63 - 1),
+        st.integers(min_value=2**1024, max_value=10**500).map(lambda i: i * (-1) ** (i % 2)),
         st.text(max_size=8),
         st.booleans(),
         st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=5),
@@ -158,3 +167,144 @@ def test_unknown_or_malformed_keys_are_one_line(text):
     with pytest.raises(optimize.SpecError) as info:
         optimize.parse_spec(text)
     assert "\n" not in str(info.value).strip()
+
+
+# --------------------------------------------------------------------------- finite but extreme
+
+# Every number of the spec that is a float (the solver's sizes change the structure: left out).
+FLOAT_PATHS = [
+    path
+    for path, value in _paths(DEFAULT)
+    if isinstance(value, float) or (isinstance(value, list) and isinstance(value[0], float))
+    if path[0] not in ("solver",)
+]
+EXTREME = [5e-324, 1e-300, 1e-30, 1e30, 1e300, 1.7976931348623157e308]
+DESIGN = {"R": 21.3, "d_roller": 27.8}
+
+
+def _finite_result(out):
+    return math.isfinite(out["objective"]) and all(
+        math.isfinite(m) for m in out["constraints"].values()
+    )
+
+
+@pytest.mark.parametrize("path", FLOAT_PATHS, ids=lambda p: ".".join(p))
+def test_extreme_finite_numbers_are_rejected_or_reported_nonfinite(path):
+    """A finite number that makes the problem non-finite: a SpecError, or result ``nonfinite``.
+
+    Never "successful" beside an infinite objective or margin (a weight of 1e300 over a
+    reference of 1e-300, a limit of 5e-324 …).
+    """
+    default = DEFAULTS[path]
+    for value in EXTREME:
+        given = [value] * len(default) if isinstance(default, list) else value
+        try:
+            spec = optimize.parse_spec(_spec_text(path, given))
+        except optimize.SpecError as error:
+            assert "\n" not in str(error).strip()
+            continue
+        design = {k: v for k, v in DESIGN.items() if k in spec.structure.free}
+        try:
+            out = optimize.evaluate(spec, design)
+        except ValueError as error:  # the design is outside the domain this spec makes
+            assert "design" in str(error), error
+            continue
+        if out["result"] == "successful":
+            assert _finite_result(out), (path, value, out)
+
+
+@pytest.mark.parametrize(
+    "text, fragment",
+    [
+        ("[objective]\nw_irregularity = 1e300\nirregularity_ref = 1e-300", "overflows"),
+        ("[objective]\nirregularity_ref = 5e-324", "overflows"),
+    ],
+)
+def test_an_overflowing_weight_over_reference_is_a_spec_error(text, fragment):
+    with pytest.raises(optimize.SpecError, match=fragment):
+        optimize.parse_spec(text)
+
+
+def test_a_non_finite_margin_is_result_nonfinite_not_successful():
+    spec = optimize.parse_spec("[loads]\nM_max = 5e-324")
+    out = optimize.evaluate(spec, DESIGN)
+    assert out["result"] == "nonfinite" and not _finite_result(out)
+
+
+# --------------------------------------------------------------------------- contradictions
+
+
+@settings(max_examples=30, deadline=None, derandomize=True)
+@given(
+    weights=st.lists(
+        st.floats(max_value=0.0, allow_nan=False, allow_infinity=False, min_value=-1e6),
+        min_size=3,
+        max_size=3,
+    ).filter(any)
+)
+def test_objective_without_a_positive_weight_is_a_spec_error(weights):
+    names = ("w_irregularity", "w_gaf_rms", "w_outer_diameter")
+    text = "[objective]\n" + "\n".join(f"{n} = {w!r}" for n, w in zip(names, weights, strict=True))
+    with pytest.raises(optimize.SpecError, match="positive weight"):
+        optimize.parse_spec(text)
+
+
+# --------------------------------------------------------------------------- types the API promises
+
+
+SPEC = optimize.load_spec()
+
+
+@pytest.mark.parametrize(
+    "convert",
+    [
+        np.float32,
+        np.float64,
+        np.int64,
+        jnp.asarray,
+        lambda v: np.asarray(v),
+        lambda v: jnp.asarray(v, jnp.float32),
+    ],
+)
+def test_replace_values_takes_real_scalars_of_any_array_library(convert):
+    changed = SPEC.replace_values(
+        hertz=types.MappingProxyType({"P_d": convert(1300)}),
+        layout={"gamma0_deg": convert(22)},
+        life={"torque": (convert(1154), 700.0, 350.0, 150.0)},
+        bounds={"R": np.array([convert(15), 40.0])},
+    )
+    expected = SPEC.replace_values(
+        hertz={"P_d": 1300.0},
+        layout={"gamma0_deg": 22.0},
+        life={"torque": [1154.0, 700.0, 350.0, 150.0]},
+        bounds={"R": [15.0, 40.0]},
+    )
+    assert changed.structure == expected.structure
+    for section in expected.values:
+        for key, value in expected.values[section].items():
+            np.testing.assert_allclose(changed.values[section][key], value, rtol=1e-7)
+
+
+@pytest.mark.parametrize(
+    "call, name",
+    [
+        (lambda: optimize.parse_spec(b"[loads]\nM_max = 1000.0"), "text"),
+        (lambda: optimize.parse_spec(None), "text"),
+        (lambda: optimize.parse_spec("", source=3), "source"),
+        (lambda: optimize.load_spec(12345), "path"),  # not read as a file descriptor
+        (lambda: optimize.load_spec(3.5), "path"),
+        (lambda: optimize.load_spec(["a.toml"]), "path"),
+    ],
+)
+def test_parse_and_load_name_an_argument_of_the_wrong_type(call, name):
+    with pytest.raises(TypeError, match=f"^{name} = "):
+        call()
+
+
+@pytest.mark.parametrize(
+    "sections", [{"loads": 5}, {"loads": ["M_max"]}, {"bounds": {"R": {"lo": 1}}}]
+)
+def test_replace_values_with_a_malformed_section_is_one_line(sections):
+    with pytest.raises(optimize.SpecError) as info:
+        SPEC.replace_values(**sections)
+    assert "\n" not in str(info.value)

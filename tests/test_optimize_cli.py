@@ -2,6 +2,7 @@
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -258,3 +259,71 @@ def test_cli_report_write_failure_exits_3_and_prints_the_design(tmp_path):
     assert "Traceback" not in result.stderr
     assert (out / "report.json" / "keep").read_text() == "older"
     assert not any(p.name.startswith(".") for p in out.iterdir())  # no temporary files left
+
+
+def _swap_entries(exports):
+    """Swap the contents of the two largest export entries (valid exports under wrong keys)."""
+    entries = sorted(exports.glob("*.jaxexport"), key=lambda p: p.stat().st_size)[-2:]
+    assert len(entries) == 2, list(exports.iterdir())
+    first, second = (p.read_bytes() for p in entries)
+    entries[0].write_bytes(second)
+    entries[1].write_bytes(first)
+    return entries
+
+
+def _entries_hold_their_keys(exports):
+    return all(
+        p.read_bytes().startswith(f"tripodjax-export 1 {p.stem}\n".encode())
+        for p in exports.glob("*.jaxexport")
+    )
+
+
+def test_export_cache_replaces_a_swapped_or_corrupt_entry(tmp_path):
+    import functools
+
+    import jax
+    import jax.numpy as jnp
+
+    from tripodjax.optimize._compiled import call, export_cache
+
+    @functools.partial(jax.jit, static_argnums=0)
+    def scaled(factor, x):
+        return {"y": factor * x}
+
+    @functools.partial(jax.jit, static_argnums=0)
+    def summed(n, x, y):
+        return x.sum() + n * y
+
+    def calls():
+        return (
+            float(call(scaled, 3.0, jnp.arange(4.0))["y"][1]),
+            float(call(summed, 2, jnp.arange(3.0), jnp.float32(1.0))),
+        )
+
+    with export_cache(tmp_path):
+        assert calls() == (3.0, 5.0)
+    _swap_entries(tmp_path)
+    with export_cache(tmp_path):  # a new cache (process): it loads the swapped files
+        assert calls() == (3.0, 5.0)
+    assert _entries_hold_their_keys(tmp_path)
+    for path in tmp_path.glob("*.jaxexport"):  # truncated entries
+        path.write_bytes(path.read_bytes()[:100])
+    with export_cache(tmp_path):
+        assert calls() == (3.0, 5.0)
+    assert _entries_hold_their_keys(tmp_path)
+
+
+def test_cli_with_a_swapped_cache_entry_runs_normally_and_repairs_it(cli_run, tmp_path):
+    cache = tmp_path / "cache"
+    shutil.copytree(os.path.join(tempfile.gettempdir(), "tripodjax-test-cache"), cache)
+    _swap_entries(cache / "exports")
+    out = tmp_path / "out"
+    env = dict(os.environ, TRIPODJAX_CACHE_DIR=str(cache))
+    command = [sys.executable, "-P", "-m", "tripodjax.optimize.cli", "--out", str(out)]
+    result = subprocess.run(
+        command + ["--progress", "off"], capture_output=True, text=True, env=env, timeout=900
+    )
+    assert result.returncode == 0, result.stderr
+    assert "Traceback" not in result.stderr
+    assert _entries_hold_their_keys(cache / "exports")
+    assert strict_json(out / "report.json")["converged"]
