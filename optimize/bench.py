@@ -4,13 +4,17 @@ Every figure is measured in the same run against a peer, and reported as a ratio
 (these machines are shared and noisy):
 
 - the command ``optimize-joint --out DIR``, cold (empty caches) and warm, against the
-  floor of a bare ``python -c "import jax, matplotlib.pyplot"``;
+  floor of a bare ``python -c "import jax, matplotlib.pyplot"``, for the default spec and
+  for one with the conformity free;
 - in one process, after one ``solve``, a ``solve`` of a spec that differs in a number
   (``loads.M_max``), against SciPy's SLSQP over the same ``evaluate`` with
   finite-difference gradients, and the distance between their designs;
 - for each ``[solver] fidelity`` and ``n_theta``, the first solve (trace, compile and run:
   what a fresh process waits for), a re-solve, and the distance of the design and objective
-  from the newton / float64 / n_theta = 360 answer.
+  from the newton / float64 / n_theta = 360 answer;
+- for each structure of `STRUCTURES` (which variables are free), the first solve and a
+  re-solve, and the command's cold and warm run with the conformity free (its warm run
+  loads that structure's export from the command's cache).
 
 Needs SciPy (the ``bench`` extra: ``pip install "tripodjax[bench]"``).
 """
@@ -55,13 +59,32 @@ def _seconds(command, env=None, repeats=1):
     return best
 
 
-def command_latency(repeats=2):
-    """Cold and warm ``optimize-joint`` against the import floor [s] and their ratios."""
+# Spec structures (free variables) whose first solve the bench measures: the default and the
+# ones a study frees most often. Each is a new structure: traced and compiled on its first solve.
+STRUCTURES = {
+    "R, d_roller (default)": "",
+    "R, d_roller, conformity": "[bounds]\nconformity = [1.002, 1.008]\n",
+    "R, d_roller, lam, mu_slp": "[bounds]\nlam = [0.004, 0.01]\nmu_slp = [0.04, 0.09]\n",
+    "R, d_roller, l, gamma0_deg": "[bounds]\nl = [450.0, 550.0]\ngamma0_deg = [15.0, 25.0]\n",
+}
+
+
+def command_latency(repeats=2, spec_text=None):
+    """Cold and warm ``optimize-joint`` against the import floor [s] and their ratios.
+
+    ``spec_text``: a TOML spec to run instead of the default (e.g. one of `STRUCTURES`: its
+    warm run loads the structure's export from the command's cache).
+    """
     floor = _seconds([sys.executable, "-c", "import jax, matplotlib.pyplot"], repeats=3)
     cli = [sys.executable, "-P", "-m", "tripodjax.optimize.cli"]  # -P: the installed package
     with tempfile.TemporaryDirectory() as tmp:
         env = dict(os.environ, TRIPODJAX_CACHE_DIR=os.path.join(tmp, "cache"))
         out = os.path.join(tmp, "out")
+        if spec_text is not None:
+            path = os.path.join(tmp, "spec.toml")
+            with open(path, "w", encoding="utf-8") as f:
+                f.write(spec_text)
+            cli = cli + [path]
         cold = _seconds(cli + ["--out", out, "--progress", "off"], env)
         warm = _seconds(cli + ["--out", out, "--progress", "off"], env, repeats)
     return {
@@ -171,6 +194,31 @@ def fidelity_trade(settings=FIDELITY_SETTINGS, compiled=None):
     return rows
 
 
+def first_solve_by_structure(structures=STRUCTURES, compiled=None):
+    """Per structure: its free variables, the first solve in this process (trace, compile and
+    run) and a re-solve [s]. ``compiled``: ``{structure: seconds}`` measured already."""
+    from tripodjax import optimize
+
+    rows = []
+    for name, text in structures.items():
+        spec = optimize.parse_spec(text)
+        start = time.perf_counter()
+        result = optimize.solve(spec, progress=False)
+        first = (compiled or {}).get(spec.structure, time.perf_counter() - start)
+        start = time.perf_counter()
+        optimize.solve(spec, progress=False)
+        rows.append(
+            {
+                "structure": name,
+                "free": len(spec.structure.free),
+                "first_solve_s": first,
+                "solve_s": time.perf_counter() - start,
+                "converged": result.converged,
+            }
+        )
+    return rows
+
+
 def optimize_default_structure():
     from tripodjax import optimize
 
@@ -197,6 +245,13 @@ def main(argv=None):
             f"optimize-joint: floor {c['floor_s']:.2f} s; cold {c['cold_s']:.2f} s "
             f"({c['cold_over_floor']:.1f}× floor); warm {c['warm_s']:.2f} s ({c['warm_over_floor']:.1f}× floor)"
         )
+        conformity = STRUCTURES["R, d_roller, conformity"]
+        figures["command_conformity_free"] = c = command_latency(spec_text=conformity)
+        print(
+            f"optimize-joint, conformity free: cold {c['cold_s']:.2f} s "
+            f"({c['cold_over_floor']:.1f}× floor {c['floor_s']:.2f} s); warm {c['warm_s']:.2f} s "
+            f"({c['warm_over_floor']:.1f}× floor)"
+        )
     with jax.enable_x64(True):
         figures["resolve"] = r = resolve_latency()
         print(
@@ -213,6 +268,16 @@ def main(argv=None):
         print(
             f"{row['fidelity']:<9} {row['n_theta']:>7}  {row['first_solve_s']:>15.2f}  {row['solve_s'] * 1e3:>13.1f}  "
             f"{row['design_distance_rel']:>19.1e}  {row['objective_distance_rel']:>22.1e}"
+        )
+    with jax.enable_x64(True):
+        figures["structures"] = rows = first_solve_by_structure(
+            compiled={default: r["first_solve_s"]}
+        )
+    print("free variables                 first solve [s]  re-solve [ms]  converged")
+    for row in rows:
+        print(
+            f"{row['structure']:<30} {row['first_solve_s']:>15.2f}  {row['solve_s'] * 1e3:>13.1f}  "
+            f"{row['converged']}"
         )
     if args.json:
         with open(args.json, "w", encoding="utf-8") as f:

@@ -23,6 +23,7 @@ import signal
 import sys
 import tempfile
 import threading
+import warnings
 
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT, EXIT_WRITE_FAILED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 EXIT_TERMINATED = 143  # 128 + SIGTERM
@@ -229,8 +230,11 @@ def _main(argv):
     except SpecError as error:
         print(f"optimize-joint: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    outcome = _in_worker(_compute, args, spec)
-    return _write(args, outcome)
+    with warnings.catch_warnings():
+        # A non-finite margin plots as a gap; matplotlib's warning about it is no message.
+        warnings.filterwarnings("ignore", category=RuntimeWarning, module="matplotlib")
+        outcome = _in_worker(_compute, args, spec)
+        return _write(args, outcome)
 
 
 def _compute(args, spec):

@@ -132,6 +132,18 @@ def test_cli_infeasible_spec_says_so_with_a_strict_report(tmp_path):
     assert "infeasible" in report["message"] and report["status"]["feasible"] is False
 
 
+def test_cli_non_finite_problem_says_nonfinite_not_successful(tmp_path, cli_run):
+    spec = tmp_path / "tiny.toml"
+    spec.write_text("[loads]\nM_max = 5e-324\n")  # finite, but ln(M_s / M_max) overflows
+    out = tmp_path / "out"
+    result = run_cli(str(spec), "--out", str(out), "--progress", "off")
+    assert result.returncode == 1, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "nonfinite" in lines[0] and "KKT" not in lines[0], lines
+    report = strict_json(out / "report.json")
+    assert report["status"]["result"] == "nonfinite" and not report["converged"]
+
+
 def _popen_cli(out, cache):
     env = dict(os.environ, TRIPODJAX_CACHE_DIR=str(cache))
     command = [
