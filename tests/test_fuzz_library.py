@@ -602,7 +602,9 @@ def test_sweep_torque_is_checked_like_gaf_halfshaft(torque):
 def test_sweep_layouts_name_the_field_and_index(field, value, index):
     arrays = {name: np.asarray(getattr(_layouts(3), name)).copy() for name in ("R", "l", "gamma0")}
     arrays[field][index] = value
-    layouts = tj.Layout(**arrays)
+    with pytest.raises(ValueError, match=rf"Layout\.{field}\[{index}\]"):  # Layout checks itself
+        tj.Layout(**arrays)
+    layouts = _unchecked_layouts(**arrays)  # and sweep again, as JAX rebuilds Layouts unchecked
     _assert_rejected(lambda: tj.sweep(layouts, n_theta=36), f"layouts.{field}[{index}]", value)
 
 

@@ -16,7 +16,7 @@ from tripodjax import optimize
 SPEC = optimize.load_spec()
 
 
-def run_cli(*args, cwd=None, **popen):
+def run_cli(*args, cwd=None, cache=None):
     command = [
         sys.executable,
         "-P",  # the installed package, not the source folders of the repository root
@@ -25,9 +25,8 @@ def run_cli(*args, cwd=None, **popen):
         *args,
     ]
     # The command caches compiled code; keep the tests' cache out of the user's home.
-    env = dict(
-        os.environ, TRIPODJAX_CACHE_DIR=os.path.join(tempfile.gettempdir(), "tripodjax-test-cache")
-    )
+    cache = cache or os.path.join(tempfile.gettempdir(), "tripodjax-test-cache")
+    env = dict(os.environ, TRIPODJAX_CACHE_DIR=str(cache))
     return subprocess.run(command, capture_output=True, text=True, timeout=900, cwd=cwd, env=env)
 
 
@@ -39,9 +38,15 @@ def strict_json(path):
 
 
 @pytest.fixture(scope="module")
-def cli_run(tmp_path_factory):
+def cli_cache(tmp_path_factory):
+    """The module's own cache: it holds only exports of the installed source (see the swap test)."""
+    return tmp_path_factory.mktemp("cache")
+
+
+@pytest.fixture(scope="module")
+def cli_run(tmp_path_factory, cli_cache):
     out = tmp_path_factory.mktemp("report")
-    return run_cli("--out", str(out), "--progress", "off"), out
+    return run_cli("--out", str(out), "--progress", "off", cache=cli_cache), out
 
 
 def test_cli_default_exits_0_and_writes_a_strict_report(cli_run):
@@ -132,11 +137,11 @@ def test_cli_infeasible_spec_says_so_with_a_strict_report(tmp_path):
     assert "infeasible" in report["message"] and report["status"]["feasible"] is False
 
 
-def test_cli_non_finite_problem_says_nonfinite_not_successful(tmp_path, cli_run):
+def test_cli_non_finite_problem_says_nonfinite_not_successful(tmp_path, cli_run, cli_cache):
     spec = tmp_path / "tiny.toml"
     spec.write_text("[loads]\nM_max = 5e-324\n")  # finite, but ln(M_s / M_max) overflows
     out = tmp_path / "out"
-    result = run_cli(str(spec), "--out", str(out), "--progress", "off")
+    result = run_cli(str(spec), "--out", str(out), "--progress", "off", cache=cli_cache)
     assert result.returncode == 1, result.stderr
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and "nonfinite" in lines[0] and "KKT" not in lines[0], lines
@@ -325,9 +330,9 @@ def test_export_cache_replaces_a_swapped_or_corrupt_entry(tmp_path):
     assert _entries_hold_their_keys(tmp_path)
 
 
-def test_cli_with_a_swapped_cache_entry_runs_normally_and_repairs_it(cli_run, tmp_path):
+def test_cli_with_a_swapped_cache_entry_runs_normally_and_repairs_it(cli_run, cli_cache, tmp_path):
     cache = tmp_path / "cache"
-    shutil.copytree(os.path.join(tempfile.gettempdir(), "tripodjax-test-cache"), cache)
+    shutil.copytree(cli_cache, cache)  # entries the run below loads, all of them
     _swap_entries(cache / "exports")
     out = tmp_path / "out"
     env = dict(os.environ, TRIPODJAX_CACHE_DIR=str(cache))

@@ -454,7 +454,8 @@ def check_layout_domain(R=None, l=None, gamma0=None, *, names=None, prefix="", d
                 raise ValueError(f"{label} = {value!r} is outside the allowed range: {allowed}")
     if arrays.get("R") is not None and arrays.get("l") is not None:
         R_array, l_array = np.broadcast_arrays(arrays["R"], arrays["l"])
-        ratio = R_array / l_array
+        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):  # 1e300 / 1e-300
+            ratio = R_array / l_array
         bad = ~_at_most(ratio, MAX_R_OVER_L, arrays["R"], arrays["l"])
         if np.any(bad):
             if ratio.ndim:
