@@ -9,8 +9,10 @@
   [`pareto_front`][tripodjax.optimize.pareto_front] — many scenarios in one batch.
 - [`sensitivities`][tripodjax.optimize.sensitivities] — how the optimum moves with each number.
 - [`evaluate_catalogue`][tripodjax.optimize.evaluate_catalogue] — the GE/GI sizes under the spec.
+- [`write_report`][tripodjax.optimize.write_report] — report.json, report.html and report.xlsx.
 """
 
+from tripodjax.optimize.document import write_report
 from tripodjax.optimize.problem import constraint_landscape, evaluate, evaluate_catalogue
 from tripodjax.optimize.sensitivity import sensitivities
 from tripodjax.optimize.solver import Result, pareto_front, solve, solve_family
@@ -40,4 +42,5 @@ __all__ = [
     "sensitivities",
     "solve",
     "solve_family",
+    "write_report",
 ]

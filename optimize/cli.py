@@ -117,6 +117,10 @@ def _mid_box(spec):
 
 
 def main(argv=None):
+    if (sys.argv[1:] if argv is None else argv)[:1] == ["compare"]:
+        from tripodjax.optimize.compare import main as compare
+
+        return compare((sys.argv[1:] if argv is None else argv)[1:])
     try:
         return _main(argv)
     except KeyboardInterrupt:
@@ -242,8 +246,12 @@ def _main(argv):
             reasons.append(f"the Hertz ellipse (κ) solve at the design returned {result.result}")
         message, code = f"not converged: {'; '.join(reasons)}", EXIT_NOT_CONVERGED
     body["message"] = message
+    from tripodjax.optimize import document
+
+    body["written"] = document.written_info(None if argv is None else ["optimize-joint", *argv])
+    documents, notes = document.documents(body, figures)
     try:
-        report.write(args.out, body, figures)
+        report.write(args.out, body, figures, documents)
     except OSError as error:
         print(f"optimize-joint: catalogue: {cat}; ad hoc: {ad_hoc}", file=sys.stderr)
         print(
@@ -255,6 +263,8 @@ def _main(argv):
         f"optimize-joint: catalogue: {cat}; ad hoc: {ad_hoc}, KKT residual "
         f"{result.kkt_residual:.2e} ({status}); report in {os.path.join(args.out, 'report.json')}"
     )
+    for note in notes:  # e.g. report.xlsx not written: openpyxl missing
+        print(f"optimize-joint: {note}", file=sys.stderr)
     if code != EXIT_OK:
         print(f"optimize-joint: {message}", file=sys.stderr)
     return code
