@@ -15,6 +15,7 @@ import contextvars
 import os
 import sys
 import tempfile
+import threading
 from concurrent.futures import ThreadPoolExecutor
 
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT, EXIT_WRITE_FAILED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
@@ -152,7 +153,7 @@ def _main(argv):
     # The command's own choice: keep compiled executables for the next run.
     jax.config.update("jax_compilation_cache_dir", _cache_dir())
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
-    from tripodjax.optimize import report
+    from tripodjax.optimize import document, report
     from tripodjax.optimize._compiled import export_cache, rows_per_call
     from tripodjax.optimize.problem import constraint_landscape, evaluate, evaluate_catalogue
     from tripodjax.optimize.sensitivity import sensitivities
@@ -176,6 +177,8 @@ def _main(argv):
     full_reference = None
     if spec.structure.fidelity != "newton" or spec.structure.n_theta != 360:
         full_reference = spec.replace_values(solver={"fidelity": "newton", "n_theta": 360})
+    # Jinja2, openpyxl and the report templates load beside the solve (report.html, .xlsx).
+    threading.Thread(target=document.prepare, daemon=True).start()
     pool = ThreadPoolExecutor(max_workers=1)
     rows = len(scenarios) * spec.structure.starts
     try:
@@ -246,8 +249,6 @@ def _main(argv):
             reasons.append(f"the Hertz ellipse (κ) solve at the design returned {result.result}")
         message, code = f"not converged: {'; '.join(reasons)}", EXIT_NOT_CONVERGED
     body["message"] = message
-    from tripodjax.optimize import document
-
     body["written"] = document.written_info(None if argv is None else ["optimize-joint", *argv])
     documents, notes = document.documents(body, figures)
     try:

@@ -16,6 +16,7 @@ version) and a number that is not finite are shown as "not available" with the r
 import base64
 import dataclasses
 import datetime
+import functools
 import io
 import json
 import math
@@ -702,13 +703,16 @@ def spec_toml(spec, prefix=()):
 # the page
 
 
-def svg_data_uri(fig):
-    """A matplotlib Figure as an SVG data URI (text kept as text)."""
+def image_uri(figure):
+    """A figure as a data URI: PNG bytes as they are (what ``optimize-joint`` wrote already,
+    no second rendering), a matplotlib Figure as SVG (text kept as text)."""
+    if isinstance(figure, bytes):
+        return "data:image/png;base64," + base64.b64encode(figure).decode("ascii")
     import matplotlib
 
     buffer = io.BytesIO()
     with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": "tripodjax"}):
-        fig.savefig(buffer, format="svg")
+        figure.savefig(buffer, format="svg")
     return "data:image/svg+xml;base64," + base64.b64encode(buffer.getvalue()).decode("ascii")
 
 
@@ -723,6 +727,7 @@ FIGURES = {  # the figure beside each table, by the name the CLI gives it
 }
 
 
+@functools.cache
 def _environment():
     import jinja2
 
@@ -762,14 +767,18 @@ def version_note(report):
 
 
 def render_html(report, figures=None) -> str:
-    """The report as one self-contained HTML page (``figures``: ``{name: Figure}``)."""
+    """The report as one self-contained HTML page.
+
+    ``figures``: ``{file name: matplotlib Figure or PNG bytes}`` under the names the CLI
+    gives them (``FIGURES``), each shown beside its table.
+    """
     figures = figures or {}
     safe = report if isinstance(report, dict) else {}
     images = {}
     for table, (name, caption) in FIGURES.items():
         if name in figures:
             try:
-                images[table] = (svg_data_uri(figures[name]), caption)
+                images[table] = (image_uri(figures[name]), caption)
             except (ValueError, RuntimeError, OverflowError) as error:  # a figure of bad numbers
                 images[table] = (NotAvailable(f"the figure could not be drawn: {error}"), caption)
     try:
@@ -796,6 +805,15 @@ def render_html(report, figures=None) -> str:
 
 # ---------------------------------------------------------------------------------------------
 # the workbook
+
+
+def prepare():
+    """Import Jinja2 and openpyxl and compile the templates now (``optimize-joint`` does it in
+    a thread beside the solve, so that writing the report later waits for neither)."""
+    env = _environment()
+    for name in ("report.html.j2", "compare.html.j2"):
+        env.get_template(name)
+    xlsx_missing()
 
 
 def xlsx_missing():
@@ -860,9 +878,9 @@ def documents(report, figures, formats=FORMATS):
     writers, messages = {}, []
     if "html" in formats:
 
-        def html(path):
+        def html(path, pngs):
             with open(path, "w", encoding="utf-8") as f:
-                f.write(render_html(report, figures))
+                f.write(render_html(report, {**figures, **pngs}))
 
         writers["report.html"] = html
     if "xlsx" in formats:
@@ -870,7 +888,7 @@ def documents(report, figures, formats=FORMATS):
         if missing:
             messages.append(missing)
         else:
-            writers["report.xlsx"] = lambda path: write_xlsx(report, path)
+            writers["report.xlsx"] = lambda path, pngs: write_xlsx(report, path)
     return writers, messages
 
 

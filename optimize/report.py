@@ -7,6 +7,7 @@ Plots draw on ``matplotlib.figure.Figure`` objects (no pyplot state, no backend
 switch): importing this module changes nothing in the process.
 """
 
+import io
 import json
 import math
 import os
@@ -284,8 +285,9 @@ def figure_catalogue(result, catalogue, choice, landscape=None):
 
 
 def write(out_dir, report, figures, documents=None, *, with_json=True):
-    """Write report.json, the figures ``{name: Figure}`` and the ``documents``
-    ``{name: writer(path)}`` into out_dir, atomically.
+    """Write report.json, the figures ``{name: Figure}`` (as PNG) and the ``documents``
+    ``{name: writer(path, pngs)}`` (``pngs``: the figures' PNG bytes by name) into out_dir,
+    atomically.
 
     Every file is written under a temporary name in out_dir and renamed into place
     only when all of them are complete, report.json last: a reader never sees a
@@ -302,14 +304,18 @@ def write(out_dir, report, figures, documents=None, *, with_json=True):
         return fd, tmp
 
     try:
+        pngs = {}
         for name, fig in figures.items():
+            buffer = io.BytesIO()
+            fig.savefig(buffer, format="png", dpi=110)
+            pngs[name] = buffer.getvalue()
             fd, tmp = stage(name)
-            os.close(fd)
-            fig.savefig(tmp, format="png", dpi=110)
+            with os.fdopen(fd, "wb") as f:
+                f.write(pngs[name])
         for name, writer in (documents or {}).items():
             fd, tmp = stage(name)
             os.close(fd)
-            writer(tmp)
+            writer(tmp, pngs)
         if with_json:
             fd, tmp = stage("report.json")
             with os.fdopen(fd, "w", encoding="utf-8") as f:
