@@ -249,7 +249,9 @@ def _main(argv):
             reasons.append(f"the Hertz ellipse (κ) solve at the design returned {result.result}")
         message, code = f"not converged: {'; '.join(reasons)}", EXIT_NOT_CONVERGED
     body["message"] = message
-    body["written"] = document.written_info(None if argv is None else ["optimize-joint", *argv])
+    body["written"] = document.written_info(
+        ["optimize-joint", *(sys.argv[1:] if argv is None else argv)]
+    )
     documents, notes = document.documents(body, figures)
     try:
         report.write(args.out, body, figures, documents)
