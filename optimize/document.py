@@ -147,10 +147,6 @@ def _section(title, name, build, report):
 # the tables
 
 
-def _margin_words(margin):
-    return "met" if margin >= 0 else "NOT met"
-
-
 def _summary(report):
     design = _get(report, "design")
     choice = report.get("catalogue_choice") if isinstance(report, dict) else None
@@ -226,14 +222,18 @@ def status_words(report):
         )
     full = report.get("full_fidelity")
     if isinstance(full, dict) and isinstance(full.get("constraints"), dict):
-        margins = [m for m in full["constraints"].values() if isinstance(m, (int, float))]
+        names = report.get("constraints") or full["constraints"]  # the bounds left out
+        margins = [full["constraints"].get(n) for n in names]
+        margins = [m for m in margins if isinstance(m, (int, float))]
         worst = min(margins) if margins else float("nan")
         parts.append(
             f"re-checked at {full.get('solver')} / n_theta {full.get('n_theta')}: smallest margin "
             f"{fmt(cell(worst), 3)}, objective {fmt(cell(full.get('objective')))}"
         )
-    elif full is None and "fidelity" in report:
+    elif (fidelity.get("solver"), fidelity.get("n_theta")) == ("newton", 360):
         parts.append("solved at full fidelity (no re-check needed)")
+    else:
+        parts.append("not re-checked at full fidelity (newton / n_theta 360)")
     sentence = "; ".join(parts) + "."
     if report.get("message"):
         sentence += f" {report['message'][0].upper()}{report['message'][1:]}."
