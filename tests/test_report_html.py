@@ -138,9 +138,29 @@ def test_report_opens_offline_in_chromium_with_the_reports_numbers(run):
         EXAMPLE.mkdir(parents=True, exist_ok=True)
         page.screenshot(EXAMPLE / "report.png", height=1500)
         page.pdf(EXAMPLE / "report.pdf")
+        # Printed: on the width of an A4 page within the page margins (186 mm), every table fits.
+        page.send("Emulation.setEmulatedMedia", session=True, media="print")
+        page.send(
+            "Emulation.setDeviceMetricsOverride",
+            session=True,
+            width=round(186 / 25.4 * 96),
+            height=1000,
+            deviceScaleFactor=1,
+            mobile=False,
+        )
+        overflow = page.evaluate(
+            """[...document.querySelectorAll("table, img")].filter(e =>
+               e.getBoundingClientRect().right > document.documentElement.clientWidth + 1)
+               .map(e => e.dataset.table || e.alt)"""
+        )
+    assert overflow == []
+    pdf = (EXAMPLE / "report.pdf").read_bytes()
+    boxes = {tuple(map(float, b.split())) for b in re.findall(rb"/MediaBox\s*\[([^\]]*)\]", pdf)}
+    assert len(boxes) == 1  # every page A4: 210 × 297 mm = 595.3 × 841.9 pt
+    assert next(iter(boxes)) == pytest.approx((0, 0, 595.3, 841.9), abs=1.5)
     (EXAMPLE / "report.html").write_bytes((out / "report.html").read_bytes())
     assert (EXAMPLE / "report.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert (EXAMPLE / "report.pdf").read_bytes()[:5] == b"%PDF-"
+    assert pdf[:5] == b"%PDF-"
     assert len(images) == 5 and all(ok for ok, _ in images), images
 
     def value(text_and_value):
