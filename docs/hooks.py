@@ -12,8 +12,8 @@
   `$TRIPODJAX_NOTEBOOK_OUTPUTS` (default build/notebooks/; tests/test_notebooks.py can leave
   them there) when they are newer than the package sources and hold the same cells, and are
   executed here otherwise.
-- The report page shows an example `optimize-joint` report (report.html, its screenshot and its
-  A4 print): taken from `$TRIPODJAX_REPORT_EXAMPLE` (default build/report-example/; the browser
+- The report page shows an example `optimize-joint` report (report.html, its screenshot, its
+  A4 print and report.xlsx): taken from `$TRIPODJAX_REPORT_EXAMPLE` (default build/report-example/; the browser
   test tests/test_report_html.py leaves them there) when newer than the package sources, and
   made here otherwise (the command on the default spec, then headless Chromium's --screenshot).
 """
@@ -132,7 +132,7 @@ def on_files(files, config):
 # ---------------------------------------------------------------------------------------------
 # the example report
 
-REPORT_FILES = ("report.html", "report.png", "report.pdf")
+REPORT_FILES = ("report.html", "report.png", "report.pdf", "report.xlsx")
 CHROMIUM = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
 
 
@@ -212,7 +212,9 @@ def report_example_markdown(files) -> str:
     links = ["[the page itself](report-example/report.html)"]
     if "report.pdf" in have:
         links.append("[its A4 print](report-example/report.pdf)")
-    out += ["", "Open " + " or ".join(links) + "."]
+    if "report.xlsx" in have:
+        links.append("[the workbook](report-example/report.xlsx)")
+    out += ["", "Open " + ", ".join(links) + "."]
     return "\n".join(out)
 
 
@@ -421,7 +423,8 @@ def on_page_markdown(markdown, page, config, files):
         markdown = markdown.replace(
             "<!-- spec-reference -->", spec_reference_markdown(DEFAULT_SPEC_TOML)
         )
-    for module in ("tripodjax.optimize.cli", "tripodjax.__main__", "tripodjax.bench"):
+    modules = ("tripodjax.optimize.cli", "tripodjax.optimize.compare")
+    for module in (*modules, "tripodjax.__main__", "tripodjax.bench"):
         marker = f"<!-- help {module} -->"
         if marker in markdown:
             markdown = markdown.replace(marker, _help(module))

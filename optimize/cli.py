@@ -34,7 +34,9 @@ def _parse(argv):
             "Propose a tripod joint design (any of R, d, l, γ0, conformity, λ, μ_slp free, as the "
             "spec's [bounds] say) that meets the Hertz static-capacity and life requirements and the "
             "spec's constraints at the lowest objective. Writes DIR/report.json (strict JSON: design, "
-            "status, margins, sensitivities, the GE/GI catalogue choice, Pareto front) and PNG plots."
+            "status, margins, sensitivities, the GE/GI catalogue choice, Pareto front), PNG plots, "
+            "report.html (the report to read or print) and report.xlsx (its tables). "
+            "`optimize-joint compare DIR_A DIR_B` sets two reports side by side."
         ),
         epilog=(
             "Exit status: 0 converged and feasible; 1 not converged or infeasible (the report says "

@@ -158,7 +158,8 @@ def test_report_opens_offline_in_chromium_with_the_reports_numbers(run):
     boxes = {tuple(map(float, b.split())) for b in re.findall(rb"/MediaBox\s*\[([^\]]*)\]", pdf)}
     assert len(boxes) == 1  # every page A4: 210 × 297 mm = 595.3 × 841.9 pt
     assert next(iter(boxes)) == pytest.approx((0, 0, 595.3, 841.9), abs=1.5)
-    (EXAMPLE / "report.html").write_bytes((out / "report.html").read_bytes())
+    for name in ("report.html", "report.xlsx"):
+        (EXAMPLE / name).write_bytes((out / name).read_bytes())
     assert (EXAMPLE / "report.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert pdf[:5] == b"%PDF-"
     assert len(images) == 5 and all(ok for ok, _ in images), images
