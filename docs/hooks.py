@@ -12,6 +12,10 @@
   `$TRIPODJAX_NOTEBOOK_OUTPUTS` (default build/notebooks/; tests/test_notebooks.py can leave
   them there) when they are newer than the package sources and hold the same cells, and are
   executed here otherwise.
+- The report page shows an example `optimize-joint` report (report.html, its screenshot, its
+  A4 print and report.xlsx): taken from `$TRIPODJAX_REPORT_EXAMPLE` (default build/report-example/; the browser
+  test tests/test_report_html.py leaves them there) when newer than the package sources, and
+  made here otherwise (the command on the default spec, then headless Chromium's --screenshot).
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ import logging
 import os
 import re
 import shutil
+import subprocess
 import sys
 from pathlib import Path
 
@@ -120,7 +125,97 @@ def on_files(files, config):
                 use_directory_urls=config.use_directory_urls,
             )
         )
+    _add_report_example(files, config)
     return files
+
+
+# ---------------------------------------------------------------------------------------------
+# the example report
+
+REPORT_FILES = ("report.html", "report.png", "report.pdf", "report.xlsx")
+CHROMIUM = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
+
+
+def _report_example() -> Path:
+    """A folder with a fresh example report.html (and report.png where Chromium is available)."""
+    example = Path(os.environ.get("TRIPODJAX_REPORT_EXAMPLE") or BUILD / "report-example")
+    sources = [*ROOT.glob("tripodjax/*.py"), *ROOT.glob("optimize/*.py")]
+    sources += ROOT.glob("optimize/templates/*")
+    newest = max(p.stat().st_mtime for p in sources)
+    html, png = example / "report.html", example / "report.png"
+    if all(p.is_file() and p.stat().st_mtime >= newest for p in (html, png)):
+        log.info("report example: %s", example)
+        return example
+    log.info("report example: running optimize-joint (no fresh example in %s)", example)
+    example.mkdir(parents=True, exist_ok=True)
+    for name in REPORT_FILES:
+        (example / name).unlink(missing_ok=True)
+    command = [sys.executable, "-P", "-m", "tripodjax.optimize.cli"]
+    subprocess.run([*command, "--out", str(example), "--progress", "off"], check=True)
+    chromium = next((p for p in map(shutil.which, CHROMIUM) if p), None)
+    if chromium is None:
+        log.info("report example: no Chromium on PATH, so no screenshot")
+        return example
+    profile = BUILD / "chromium-profile"
+    subprocess.run(
+        [
+            chromium,
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            f"--user-data-dir={profile}",
+            "--window-size=1200,1500",
+            f"--screenshot={png}",
+            html.as_uri(),
+        ],
+        check=True,
+        capture_output=True,
+        timeout=120,
+    )
+    return example
+
+
+def _add_report_example(files, config):
+    example = _report_example()
+    # A src_dir of its own, as for the notebooks: the files are copied into the site.
+    staged = BUILD / "docs-report" / "report-example"
+    if staged.exists():
+        shutil.rmtree(staged)
+    staged.mkdir(parents=True)
+    for name in REPORT_FILES:
+        if (example / name).is_file():
+            shutil.copyfile(example / name, staged / name)
+            files.append(
+                File(
+                    f"report-example/{name}",
+                    src_dir=str(staged.parent),
+                    dest_dir=config.site_dir,
+                    use_directory_urls=config.use_directory_urls,
+                )
+            )
+
+
+def report_example_markdown(files) -> str:
+    have = {
+        f.src_uri.removeprefix("report-example/")
+        for f in files
+        if f.src_uri.startswith("report-example/")
+    }
+    out = []
+    if "report.png" in have:
+        out.append(
+            "[![The top of the example report: summary and requirements]"
+            "(report-example/report.png)](report-example/report.html)"
+        )
+    else:
+        out.append("*(No screenshot: the site was built without Chromium.)*")
+    links = ["[the page itself](report-example/report.html)"]
+    if "report.pdf" in have:
+        links.append("[its A4 print](report-example/report.pdf)")
+    if "report.xlsx" in have:
+        links.append("[the workbook](report-example/report.xlsx)")
+    out += ["", "Open " + ", ".join(links) + "."]
+    return "\n".join(out)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -328,10 +423,13 @@ def on_page_markdown(markdown, page, config, files):
         markdown = markdown.replace(
             "<!-- spec-reference -->", spec_reference_markdown(DEFAULT_SPEC_TOML)
         )
-    for module in ("tripodjax.optimize.cli", "tripodjax.__main__", "tripodjax.bench"):
+    modules = ("tripodjax.optimize.cli", "tripodjax.optimize.compare")
+    for module in (*modules, "tripodjax.__main__", "tripodjax.bench"):
         marker = f"<!-- help {module} -->"
         if marker in markdown:
             markdown = markdown.replace(marker, _help(module))
+    if "<!-- report-example -->" in markdown:
+        markdown = markdown.replace("<!-- report-example -->", report_example_markdown(files))
     if "<!-- equation-map -->" in markdown:
         markdown = markdown.replace("<!-- equation-map -->", equation_map_markdown(config))
     return markdown

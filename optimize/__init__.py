@@ -9,6 +9,7 @@
   [`pareto_front`][tripodjax.optimize.pareto_front] — many scenarios in one batch.
 - [`sensitivities`][tripodjax.optimize.sensitivities] — how the optimum moves with each number.
 - [`evaluate_catalogue`][tripodjax.optimize.evaluate_catalogue] — the GE/GI sizes under the spec.
+- [`write_report`][tripodjax.optimize.write_report] — report.json, report.html and report.xlsx.
 """
 
 import importlib
@@ -18,6 +19,7 @@ import typing
 # ``tripodjax/__init__.py``).
 _ATTRIBUTES = {
     "constraint_landscape": "problem",
+    "write_report": "document",
     "evaluate": "problem",
     "evaluate_catalogue": "problem",
     "sensitivities": "sensitivity",
@@ -35,6 +37,7 @@ _ATTRIBUTES = {
 }
 
 if typing.TYPE_CHECKING:  # what the lazy attributes are, for type checkers and the docs
+    from tripodjax.optimize.document import write_report
     from tripodjax.optimize.problem import constraint_landscape, evaluate, evaluate_catalogue
     from tripodjax.optimize.sensitivity import sensitivities
     from tripodjax.optimize.solver import Result, pareto_front, solve, solve_family
@@ -77,4 +80,5 @@ __all__ = [
     "sensitivities",
     "solve",
     "solve_family",
+    "write_report",
 ]

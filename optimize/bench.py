@@ -15,6 +15,7 @@ Every figure is measured in the same run against a peer, and reported as a ratio
 - for each structure of `STRUCTURES` (which variables are free), the first solve and a
   re-solve, and the command's cold and warm run with the conformity free (its warm run
   loads that structure's export from the command's cache).
+- the time report.html and report.xlsx add to writing report.json and the PNGs.
 
 Needs SciPy (the ``bench`` extra: ``pip install "tripodjax[bench]"``).
 """
@@ -219,6 +220,59 @@ def first_solve_by_structure(structures=STRUCTURES, compiled=None):
     return rows
 
 
+def report_writing(repeats=3):
+    """The time report.html and report.xlsx add to ``optimize-joint`` [s].
+
+    - ``command_added_s``: a warm ``optimize-joint`` against the same command with the two
+      documents switched off (``document.documents`` returning none), best of ``repeats``;
+    - in one process, writing the default run's report with the documents against report.json
+      and the PNGs alone: ``added_cold_s`` the first time (importing Jinja2 and openpyxl and
+      compiling the template: what the command does in a thread beside the solve),
+      ``added_s`` once they are loaded (what the command waits for).
+    """
+    cli = "from tripodjax.optimize.cli import command; command()"
+    off = "from tripodjax.optimize import document; document.documents = lambda *a: ({}, []); "
+    figures = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        env = dict(os.environ, TRIPODJAX_CACHE_DIR=os.path.join(tmp, "cache"))
+        out = os.path.join(tmp, "out")
+        args = ["--out", out, "--progress", "off"]
+        _seconds([sys.executable, "-P", "-c", cli, *args], env)  # fills the caches
+        with_documents = _seconds([sys.executable, "-P", "-c", cli, *args], env, repeats)
+        without = _seconds([sys.executable, "-P", "-c", off + cli, *args], env, repeats)
+    figures.update(command_s=with_documents, command_without_s=without)
+    figures["command_added_s"] = with_documents - without
+
+    from tripodjax import optimize
+    from tripodjax.optimize import document, report
+
+    spec = optimize.load_spec()
+    result = optimize.solve(spec, progress=False)
+    result.sensitivities = optimize.sensitivities(spec, result)
+    catalogue, choice = optimize.evaluate_catalogue(spec)
+    body = report.report_dict(result, spec, catalogue=catalogue, choice=choice)
+    drawn = {
+        "convergence.png": report.figure_convergence(result),
+        "constraint_margins.png": report.figure_margins(result),
+        "catalogue.png": report.figure_catalogue(result, catalogue, choice),
+        "sensitivities.png": report.figure_tornado(result),
+    }
+
+    def seconds(with_documents):
+        with tempfile.TemporaryDirectory() as out:
+            start = time.perf_counter()
+            writers = document.documents(body, drawn)[0] if with_documents else None
+            report.write(out, body, drawn, writers)
+            return time.perf_counter() - start
+
+    seconds(False)  # matplotlib's first PNG (fonts, Agg) is not the documents' cost
+    figures["added_cold_s"] = seconds(True) - seconds(False)
+    base = min(seconds(False) for _ in range(repeats))
+    figures["json_png_s"] = base
+    figures["added_s"] = min(seconds(True) for _ in range(repeats)) - base
+    return figures
+
+
 def optimize_default_structure():
     from tripodjax import optimize
 
@@ -261,6 +315,13 @@ def main(argv=None):
         )
         default = optimize_default_structure()
         figures["fidelity"] = rows = fidelity_trade(compiled={default: r["first_solve_s"]})
+        figures["report"] = w = report_writing()
+        print(
+            f"report.html and report.xlsx: warm optimize-joint {w['command_s']:.2f} s, without them "
+            f"{w['command_without_s']:.2f} s (added {w['command_added_s']:+.2f} s); writing them "
+            f"adds {w['added_s']:.2f} s ({w['added_cold_s']:.2f} s with the imports) to the "
+            f"{w['json_png_s']:.2f} s of report.json and the PNGs"
+        )
     print(
         "fidelity  n_theta  first solve [s]  re-solve [ms]  design vs reference  objective vs reference"
     )

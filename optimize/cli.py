@@ -118,7 +118,9 @@ def _parse(argv):
             "Propose a tripod joint design (any of R, d, l, γ0, conformity, λ, μ_slp free, as the "
             "spec's [bounds] say) that meets the Hertz static-capacity and life requirements and the "
             "spec's constraints at the lowest objective. Writes DIR/report.json (strict JSON: design, "
-            "status, margins, sensitivities, the GE/GI catalogue choice, Pareto front) and PNG plots."
+            "status, margins, sensitivities, the GE/GI catalogue choice, Pareto front), PNG plots, "
+            "report.html (the report to read or print) and report.xlsx (its tables). "
+            "`optimize-joint compare DIR_A DIR_B` sets two reports side by side."
         ),
         epilog=(
             "Exit status: 0 converged and feasible; 1 not converged or infeasible (the report says "
@@ -204,6 +206,11 @@ def _mid_box(spec):
 
 def main(argv=None):
     """The command: parse, check, compute (in a worker thread), write. Returns the exit status."""
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["compare"]:
+        from tripodjax.optimize.compare import main as compare
+
+        return compare(argv[1:])
     try:
         return _main(argv)
     except KeyboardInterrupt:  # main() called without command()'s handlers
@@ -233,11 +240,11 @@ def _main(argv):
     with warnings.catch_warnings():
         # A non-finite margin plots as a gap; matplotlib's warning about it is no message.
         warnings.filterwarnings("ignore", category=RuntimeWarning, module="matplotlib")
-        outcome = _in_worker(_compute, args, spec)
+        outcome = _in_worker(_compute, args, spec, ["optimize-joint", *argv])
         return _write(args, outcome)
 
 
-def _compute(args, spec):
+def _compute(args, spec, command_line):
     """Everything the report holds: solve, catalogue, landscape, sensitivities, figures."""
     import contextvars
     from concurrent.futures import ThreadPoolExecutor
@@ -247,7 +254,7 @@ def _compute(args, spec):
     # The command's own choice: keep compiled executables for the next run.
     jax.config.update("jax_compilation_cache_dir", _cache_dir())
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
-    from tripodjax.optimize import report
+    from tripodjax.optimize import document, report
     from tripodjax.optimize._compiled import export_cache, rows_per_call
     from tripodjax.optimize.problem import constraint_landscape, evaluate, evaluate_catalogue
     from tripodjax.optimize.sensitivity import sensitivities
@@ -271,6 +278,8 @@ def _compute(args, spec):
     full_reference = None
     if spec.structure.fidelity != "newton" or spec.structure.n_theta != 360:
         full_reference = spec.replace_values(solver={"fidelity": "newton", "n_theta": 360})
+    # Jinja2, openpyxl and the report templates load beside the solve (report.html, .xlsx).
+    threading.Thread(target=document.prepare, daemon=True).start()
     pool = ThreadPoolExecutor(max_workers=1)
     rows = len(scenarios) * spec.structure.starts
     try:
@@ -312,6 +321,8 @@ def _compute(args, spec):
     )
     message, code = _verdict(result)
     body["message"] = message
+    body["written"] = document.written_info(command_line)
+    documents, notes = document.documents(body, figures)
     cat = (
         f"{choice['family']} {choice['size']} (objective {choice['objective']:.5f})"
         if choice
@@ -321,6 +332,8 @@ def _compute(args, spec):
     return {
         "body": body,
         "figures": figures,
+        "documents": documents,
+        "notes": notes,
         "message": message,
         "code": code,
         "designs": f"catalogue: {cat}; ad hoc: {_summary(result)}",
@@ -368,7 +381,7 @@ def _write(args, outcome):
 
     with _SIGNALS.staging():
         try:
-            report.write(args.out, outcome["body"], outcome["figures"])
+            report.write(args.out, outcome["body"], outcome["figures"], outcome["documents"])
         except OSError as error:
             print(f"optimize-joint: {outcome['designs']}", file=sys.stderr)
             print(
@@ -381,6 +394,8 @@ def _write(args, outcome):
         f"optimize-joint: {outcome['designs']}, {outcome['status']}; "
         f"report in {os.path.join(args.out, 'report.json')}"
     )
+    for note in outcome["notes"]:  # e.g. report.xlsx not written: openpyxl missing
+        print(f"optimize-joint: {note}", file=sys.stderr)
     if outcome["code"] != EXIT_OK:
         print(f"optimize-joint: {outcome['message']}", file=sys.stderr)
     return outcome["code"]

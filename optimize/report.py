@@ -7,6 +7,7 @@ Plots draw on ``matplotlib.figure.Figure`` objects (no pyplot state, no backend
 switch): importing this module changes nothing in the process.
 """
 
+import io
 import json
 import math
 import os
@@ -283,8 +284,10 @@ def figure_catalogue(result, catalogue, choice, landscape=None):
     return fig
 
 
-def write(out_dir, report, figures):
-    """Write report.json and the figures ``{name: Figure}`` into out_dir, atomically.
+def write(out_dir, report, figures, documents=None, *, with_json=True):
+    """Write report.json, the figures ``{name: Figure}`` (as PNG) and the ``documents``
+    ``{name: writer(path, pngs)}`` (``pngs``: the figures' PNG bytes by name) into out_dir,
+    atomically.
 
     Every file is written under a temporary name in out_dir and renamed into place
     only when all of them are complete, report.json last: a reader never sees a
@@ -294,16 +297,29 @@ def write(out_dir, report, figures):
     staged = []
     umask = os.umask(0)
     os.umask(umask)
+
+    def stage(name):
+        fd, tmp = tempfile.mkstemp(prefix=f".{name}.", dir=out_dir)
+        staged.append((tmp, name))
+        return fd, tmp
+
     try:
+        pngs = {}
         for name, fig in figures.items():
-            fd, tmp = tempfile.mkstemp(prefix=f".{name}.", dir=out_dir)
+            buffer = io.BytesIO()
+            fig.savefig(buffer, format="png", dpi=110)
+            pngs[name] = buffer.getvalue()
+            fd, tmp = stage(name)
+            with os.fdopen(fd, "wb") as f:
+                f.write(pngs[name])
+        for name, writer in (documents or {}).items():
+            fd, tmp = stage(name)
             os.close(fd)
-            staged.append((tmp, name))
-            fig.savefig(tmp, format="png", dpi=110)
-        fd, tmp = tempfile.mkstemp(prefix=".report.json.", dir=out_dir)
-        staged.append((tmp, "report.json"))
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            json.dump(report, f, indent=2, ensure_ascii=False, allow_nan=False)
+            writer(tmp, pngs)
+        if with_json:
+            fd, tmp = stage("report.json")
+            with os.fdopen(fd, "w", encoding="utf-8") as f:
+                json.dump(report, f, indent=2, ensure_ascii=False, allow_nan=False)
         while staged:
             tmp, name = staged[0]
             os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600 files

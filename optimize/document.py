@@ -1,0 +1,951 @@
+"""The report as documents a person reads: one self-contained HTML page and a spreadsheet.
+
+Both are built from the dict that [`report_dict`][tripodjax.optimize.report.report_dict]
+returns (the content of ``report.json``), through one table model
+([`tables`][tripodjax.optimize.document.tables]): the page and the workbook hold the same
+numbers. A section the report lacks (an optional one, or a report written by another
+version) and a number that is not finite are shown as "not available" with the reason.
+
+- ``report.html``: the template ``templates/report.html.j2`` (Jinja2, autoescaped); figures
+  embedded as SVG data URIs; no script, no fetch; print styles for A4.
+- ``report.xlsx``: a sheet per table, units in the headers, numbers as numbers, frozen
+  header rows. Needs openpyxl (the ``report`` extra); without it the other files are written
+  and one line says what to install.
+"""
+
+import base64
+import dataclasses
+import datetime
+import functools
+import io
+import json
+import math
+import os
+import re
+import shlex
+import sys
+
+XLSX_EXTRA = 'pip install "tripodjax[report]"'
+FORMATS = ("json", "html", "xlsx")
+SENSITIVITY_ROWS = 12  # the largest sensitivities listed (by |elasticity of the objective|)
+# Units of spec keys whose comment in the embedded spec does not carry one.
+_LIST_UNITS = {
+    "life.torque": "N·m",
+    "life.speed": "rpm",
+    "life.vehicle_speed": "km/h",
+    "life.share": "–",
+    "life.conditions.share": "–",
+}
+
+
+class NotAvailable(Exception):
+    """A section or number the report cannot give; the message is the reason."""
+
+
+@dataclasses.dataclass
+class Column:
+    header: str
+    unit: str = ""
+    kind: str = ""  # "margin": a pass/fail mark beside the number; "text": never a number
+
+    @property
+    def label(self):
+        return f"{self.header} [{self.unit}]" if self.unit else self.header
+
+
+@dataclasses.dataclass
+class Table:
+    """One table of the report: the same rows on the page and in the workbook."""
+
+    name: str  # the sheet's name
+    title: str
+    columns: list = dataclasses.field(default_factory=list)
+    rows: list = dataclasses.field(default_factory=list)
+    notes: list = dataclasses.field(default_factory=list)  # sentences shown under the table
+    unavailable: str | None = None  # the reason the table is not available
+    margin_rows: bool = False  # rows named "margin …" hold margins (the summary)
+
+    def mark(self, row, j):
+        """ "pass" or "fail" when cell j of ``row`` is a margin, else None."""
+        value = row[j]
+        if isinstance(value, bool) or not isinstance(value, float):
+            return None
+        named = self.margin_rows and j >= 2 and str(row[0]).startswith("margin ")
+        if self.columns[j].kind == "margin" or named:
+            return "pass" if value >= 0 else "fail"
+        return None
+
+
+# ---------------------------------------------------------------------------------------------
+# reading the report defensively
+
+
+def _get(report, *path):
+    """``report[path[0]][path[1]]…``, or NotAvailable naming the missing key."""
+    value = report
+    for i, key in enumerate(path):
+        try:
+            value = value[key]
+        except (KeyError, IndexError, TypeError):
+            where = ".".join(str(k) for k in path[: i + 1])
+            raise NotAvailable(f"the report has no {where}") from None
+        if value is None:
+            where = ".".join(str(k) for k in path[: i + 1])
+            raise NotAvailable(f"{where} is null in the report")
+    return value
+
+
+def number(value):
+    """``value`` as a finite float, or NotAvailable saying why not."""
+    if value is None:
+        raise NotAvailable("null in the report (not finite when computed)")
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise NotAvailable(f"{value!r} is not a number")
+    if not math.isfinite(value):
+        raise NotAvailable(f"{value!r} is not finite")
+    return float(value)
+
+
+def cell(value):
+    """A table cell: a finite number, a string, a bool, or NotAvailable (the reason)."""
+    if isinstance(value, (str, bool, NotAvailable)):
+        return value
+    try:
+        return number(value)
+    except NotAvailable as reason:
+        return reason
+
+
+def fmt(value, digits=5):
+    """The text of a cell (numbers to ``digits`` significant figures)."""
+    if isinstance(value, NotAvailable):
+        return f"not available ({value})"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, float):
+        if value == 0.0:
+            return "0"
+        if 10**digits <= abs(value) < 1e9:
+            return f"{value:.0f}"
+        if 1e-3 <= abs(value) < 10**digits:
+            return f"{value:.{digits}g}"
+        return f"{value:.{digits - 1}e}"
+    return str(value)
+
+
+def _section(title, name, build, report):
+    try:
+        return build(report)
+    except NotAvailable as reason:
+        return Table(name, title, unavailable=str(reason))
+    except (KeyError, IndexError, TypeError, ValueError, AttributeError) as error:
+        # A report of another layout (another version): say so rather than crash.
+        return Table(name, title, unavailable=f"the report's {name} cannot be read ({error!r})")
+
+
+# ---------------------------------------------------------------------------------------------
+# the tables
+
+
+def _summary(report):
+    design = _get(report, "design")
+    choice = report.get("catalogue_choice") if isinstance(report, dict) else None
+    columns = [
+        Column("item", kind="text"),
+        Column("unit", kind="text"),
+        Column("proposed design"),
+        Column("catalogue choice"),
+    ]
+    rows = []
+    name = (
+        f"{choice['family']} {choice['size']}"
+        if choice
+        else NotAvailable(
+            "no catalogue size is feasible"
+            if "catalogue" in report
+            else "no catalogue in the report"
+        )
+    )
+    rows.append(["design", "", "ad hoc optimum", name])
+    from tripodjax.optimize.spec import REPORT_KEYS, VARIABLES
+
+    free = [REPORT_KEYS.get(v, v) for v in report.get("free_variables", [])]
+    for key in ["R_mm", "d_roller_mm", *[k for k in free if k not in ("R_mm", "d_roller_mm")]]:
+        variable = next((v for v, k in REPORT_KEYS.items() if k == key), key)
+        section, _, unit, _ = VARIABLES.get(variable, ("", "", "", None))
+        if not choice:
+            other = name
+        elif key in choice:
+            other = cell(choice[key])
+        else:  # the catalogue keeps every variable but R and d at the spec's value
+            other = cell((report.get("spec") or {}).get(section, {}).get(variable))
+        rows.append([key.removesuffix(f"_{unit}"), unit, cell(design.get(key)), other])
+    rows.append(
+        [
+            "objective",
+            "–",
+            cell(report.get("objective")),
+            cell(choice["objective"]) if choice else name,
+        ]
+    )
+    for constraint, c in _get(report, "constraints").items():
+        rows.append(
+            [
+                f"margin {constraint}",
+                "–",
+                cell(c.get("margin")),
+                cell(choice["margins"].get(constraint)) if choice else name,
+            ]
+        )
+    return Table(
+        "summary", "Summary", columns, rows, notes=[status_words(report)], margin_rows=True
+    )
+
+
+def status_words(report):
+    """The status of the run in one sentence."""
+    status = report.get("status") or {}
+    parts = [
+        "converged" if report.get("converged") else "NOT converged",
+        "feasible" if status.get("feasible") else "NOT feasible",
+    ]
+    try:
+        parts.append(
+            f"KKT residual {fmt(number(report['kkt_residual']), 3)} (tolerance {fmt(number(report['tolerance']), 3)})"
+        )
+    except (KeyError, NotAvailable):
+        parts.append("KKT residual not available")
+    fidelity = report.get("fidelity") or {}
+    if fidelity:
+        parts.append(
+            f"solved at fidelity {fidelity.get('solver')} / n_theta {fidelity.get('n_theta')}"
+        )
+    full = report.get("full_fidelity")
+    if isinstance(full, dict) and isinstance(full.get("constraints"), dict):
+        names = report.get("constraints") or full["constraints"]  # the bounds left out
+        margins = [full["constraints"].get(n) for n in names]
+        margins = [m for m in margins if isinstance(m, (int, float))]
+        worst = min(margins) if margins else float("nan")
+        parts.append(
+            f"re-checked at {full.get('solver')} / n_theta {full.get('n_theta')}: smallest margin "
+            f"{fmt(cell(worst), 3)}, objective {fmt(cell(full.get('objective')))}"
+        )
+    elif (fidelity.get("solver"), fidelity.get("n_theta")) == ("newton", 360):
+        parts.append("solved at full fidelity (no re-check needed)")
+    else:
+        parts.append("not re-checked at full fidelity (newton / n_theta 360)")
+    sentence = "; ".join(parts) + "."
+    if report.get("message"):
+        sentence += f" {report['message'][0].upper()}{report['message'][1:]}."
+    return sentence
+
+
+def _active(report):
+    notes = report.get("sensitivity_notes")
+    if isinstance(notes, dict) and isinstance(notes.get("active"), list):
+        return set(notes["active"])
+    return {
+        k
+        for k, v in (report.get("multipliers") or {}).items()
+        if isinstance(v, (int, float)) and v > 0
+    }
+
+
+def _requirements(report):
+    active = _active(report)
+    full = (report.get("full_fidelity") or {}).get("constraints") or {}
+    columns = [
+        Column("requirement", kind="text"),
+        Column("sense", kind="text"),
+        Column("value"),
+        Column("limit"),
+        Column("unit", kind="text"),
+        Column("margin ln(value/limit)", "–", kind="margin"),
+        Column("multiplier", "–"),
+        Column("active"),
+        Column("at full fidelity: margin", "–", kind="margin"),
+    ]
+    rows = []
+    for name, c in _get(report, "constraints").items():
+        rows.append(
+            [
+                name,
+                c.get("sense", ""),
+                cell(c.get("value")),
+                cell(c.get("limit")),
+                c.get("unit", ""),
+                cell(c.get("margin")),
+                cell((report.get("multipliers") or {}).get(name)),
+                name in active,
+                cell(full[name]) if name in full else NotAvailable("no full-fidelity re-check"),
+            ]
+        )
+    return Table(
+        "requirements",
+        "Requirements",
+        columns,
+        rows,
+        notes=[
+            "A requirement is met when its margin is ≥ 0 (✓ met, ✗ NOT met); active: its multiplier is positive, it holds the design."
+        ],
+    )
+
+
+def _quantities(report):
+    units = report.get("units") or {}
+    choice = report.get("catalogue_choice") or {}
+    full = (report.get("full_fidelity") or {}).get("quantities") or {}
+    columns = [
+        Column("quantity", kind="text"),
+        Column("unit", kind="text"),
+        Column("proposed design"),
+        Column("catalogue choice"),
+        Column("at full fidelity"),
+    ]
+    rows = [
+        [
+            name,
+            units.get(name, ""),
+            cell(value),
+            cell(choice["quantities"].get(name))
+            if "quantities" in choice
+            else NotAvailable("no catalogue choice"),
+            cell(full[name]) if name in full else NotAvailable("no full-fidelity re-check"),
+        ]
+        for name, value in _get(report, "quantities").items()
+    ]
+    return Table("quantities", "Quantities", columns, rows)
+
+
+_ABSENT = {
+    "life": "the report has no life section (the life chain of this version does not give the life per working condition)",
+    "reliability": "the spec has no uncertainty (no reliability section in the report)",
+}
+
+
+def _life(report):
+    life = report.get("life")
+    if life is None:
+        raise NotAvailable(_ABSENT["life"])
+    columns = [
+        Column("condition", kind="text"),
+        Column("angle", "deg"),
+        Column("share of the mileage", "–"),
+        Column("life", "km"),
+        Column("share of the damage", "–"),
+    ]
+    rows = [
+        [
+            c["name"],
+            cell(c.get("angle_deg")),
+            cell(c.get("share")),
+            cell(c.get("life_km")),
+            cell(c.get("damage_share")),
+        ]
+        for c in _get(life, "conditions")
+    ]
+    notes = [
+        f"Life {fmt(cell(life.get('km')))} km ({fmt(cell(life.get('hours')))} h) against "
+        f"{fmt(cell(life.get('required_km')))} km required; angle law {life.get('angle_law', 'not given')}; "
+        f"M_max forward {fmt(cell(life.get('M_max_forward_Nm')))} N·m, backward {fmt(cell(life.get('M_max_backward_Nm')))} N·m."
+    ]
+    return Table("life", "Life per working condition", columns, rows, notes)
+
+
+def _damage(report):
+    life = report.get("life")
+    if life is None:
+        raise NotAvailable(_ABSENT["life"])
+    columns = [
+        Column("mode", kind="text"),
+        Column("gear", kind="text"),
+        Column("engine condition", kind="text"),
+        Column("share of the damage", "–"),
+    ]
+    rows = [
+        [
+            str(d.get("mode", "")),
+            str(d.get("gear", "")),
+            str(d.get("engine_condition", "")),
+            cell(d.get("damage_share")),
+        ]
+        for d in _get(life, "damage_by_case")
+    ]
+    return Table("damage", "Damage shares by load case", columns, rows)
+
+
+def _reliability(report):
+    rel = report.get("reliability")
+    if rel is None:
+        raise NotAvailable(_ABSENT["reliability"])
+    columns = [
+        Column("requirement", kind="text"),
+        Column("β (FORM)", "–"),
+        Column("P failure (FORM)", "–"),
+        Column("P failure (Monte Carlo)", "–"),
+        Column("95 % interval low", "–"),
+        Column("95 % interval high", "–"),
+        Column("samples", "–"),
+        Column("FORM and MC agree"),
+        Column("largest importance", kind="text"),
+    ]
+    rows = []
+    for r in _get(rel, "requirements"):
+        interval = r.get("mc_interval_95") or [None, None]
+        importance = r.get("importance") or {}
+        top = max(importance, key=lambda k: abs(importance[k] or 0.0), default=None)
+        rows.append(
+            [
+                r["name"],
+                cell(r.get("beta_form")),
+                cell(r.get("probability_form")),
+                cell(r.get("probability_mc")),
+                cell(interval[0]),
+                cell(interval[1]),
+                cell(r.get("samples")),
+                bool(r.get("agree")),
+                f"{top} ({fmt(cell(importance[top]), 3)})" if top else "–",
+            ]
+        )
+    interval = rel.get("system_interval_95") or [None, None]
+    inputs = rel.get("inputs") or {}
+    notes = [
+        f"Method {rel.get('method', 'not given')}; system probability of failure (Monte Carlo) "
+        f"{fmt(cell(rel.get('system_probability_mc')), 3)}, 95 % interval "
+        f"[{fmt(cell(interval[0]), 3)}, {fmt(cell(interval[1]), 3)}].",
+        "Uncertain inputs: "
+        + ("; ".join(f"{k}: {v}" for k, v in inputs.items()) or "none listed")
+        + ".",
+    ]
+    return Table("reliability", "Reliability", columns, rows, notes)
+
+
+def spec_unit(key):
+    """The unit of a spec key (``section.key`` or ``section.key[i]``), from the embedded spec."""
+    from tripodjax.optimize.spec import DEFAULT_SPEC_TOML, QUANTITIES
+
+    base = key.split("[")[0]
+    section, _, name = base.rpartition(".")
+    if base in _LIST_UNITS:
+        return _LIST_UNITS[base]
+    if name.endswith("_deg"):
+        return "deg"
+    if section == "constraints" and name[4:] in QUANTITIES:
+        return QUANTITIES[name[4:]][0]
+    if section == "objective":
+        if name.endswith("_ref") and name[:-4] in QUANTITIES:
+            return QUANTITIES[name[:-4]][0]
+        return "–"
+    current = None
+    for line in DEFAULT_SPEC_TOML.splitlines():
+        header = re.match(r"^\[([\w.]+)\]", line)
+        if header:
+            current = header.group(1)
+        match = re.match(r"^#?\s*(\w+)\s*=[^#]*#.*?\[([^\[\]]{1,16})\]", line)
+        if match and current == section and match.group(1) == name:
+            return match.group(2)
+    return "–"
+
+
+def _spec_value(spec, key):
+    base, _, index = key.partition("[")
+    value = spec
+    for part in base.split("."):
+        value = value[part]
+    if index:
+        value = value[int(index.rstrip("]"))]
+    return float(value)
+
+
+def _sensitivities(report):
+    notes_in = report.get("sensitivity_notes")
+    derivatives = report.get("sensitivities")
+    if notes_in is None and derivatives is None:
+        raise NotAvailable("the run did not converge: no sensitivities of an unfinished optimum")
+    notes_in = notes_in or {}
+    if notes_in.get("unavailable"):
+        raise NotAvailable(notes_in["unavailable"])
+    if not derivatives:
+        raise NotAvailable("the report lists no sensitivities")
+    from tripodjax.optimize.spec import VARIABLES
+
+    outputs = list(next(iter(derivatives.values())))
+    spec = report.get("spec") or {}
+
+    def elasticity(key):
+        try:
+            p = _spec_value(spec, key) - (1.0 if key == "hertz.conformity" else 0.0)
+            return p * number(derivatives[key]["objective"]) / number(report["objective"])
+        except (KeyError, IndexError, TypeError, ValueError, NotAvailable):
+            return NotAvailable("the spec value is not in the report")
+
+    ranked = sorted(
+        derivatives,
+        key=lambda k: -abs(e) if isinstance(e := elasticity(k), float) else 0.0,
+    )[:SENSITIVITY_ROWS]
+    columns = [Column("spec key", kind="text"), Column("unit", kind="text"), Column("value")]
+    for out in outputs:
+        unit = "–" if out == "objective" else VARIABLES.get(out, ("", "", "–"))[2]
+        columns.append(Column(f"d {out} / d p", f"{unit} per unit of p"))
+    columns.append(Column("elasticity of the objective", "–"))
+    rows = []
+    for key in ranked:
+        try:
+            value = cell(_spec_value(spec, key))
+        except (KeyError, IndexError, TypeError, ValueError):
+            value = NotAvailable("not in the report's spec")
+        rows.append(
+            [
+                key,
+                spec_unit(key),
+                value,
+                *(cell(derivatives[key].get(o)) for o in outputs),
+                elasticity(key),
+            ]
+        )
+    notes = [
+        f"The {len(rows)} largest of {len(derivatives)} by |elasticity of the objective| "
+        "((p/objective)·d objective/dp; for the conformity Ψ, p is Ψ − 1). Derivatives per unit of the spec key's own unit.",
+        "Active constraints: "
+        + (", ".join(notes_in.get("active") or []) or "none")
+        + "; variables on a bound: "
+        + (", ".join(notes_in.get("on_bound") or []) or "none")
+        + "; near a switch: "
+        + (", ".join(notes_in.get("near_switch") or []) or "none")
+        + f"; KKT condition number {fmt(cell(notes_in.get('condition_number')), 3)}.",
+    ]
+    return Table("sensitivities", "Sensitivities", columns, rows, notes)
+
+
+def _switch(report):
+    notes = report.get("sensitivity_notes") or {}
+    distance = notes.get("switch_distance")
+    if distance is None:
+        raise NotAvailable(
+            "the report has no switch distances (sensitivity_notes.switch_distance): "
+            "how far each input may move before a constraint switches is not given"
+        )
+    columns = [
+        Column("constraint", kind="text"),
+        Column("spec key", kind="text"),
+        Column("relative change at which it switches", "–"),
+    ]
+    rows = [[c, k, cell(v)] for c, per_key in distance.items() for k, v in per_key.items()]
+    step = notes.get("switch_step")
+    return Table(
+        "switch",
+        "Near-switch notes",
+        columns,
+        rows,
+        notes=[
+            f"Relative change tested: {fmt(cell(step), 3)}."
+            if step is not None
+            else "Relative change tested: not given."
+        ],
+    )
+
+
+def _catalogue(report):
+    catalogue = report.get("catalogue")
+    if catalogue is None:
+        raise NotAvailable("the run evaluated no catalogue")
+    columns = [
+        Column("family", kind="text"),
+        Column("size", kind="text"),
+        Column("R", "mm"),
+        Column("d", "mm"),
+        Column("feasible"),
+        Column("objective", "–"),
+        Column("binding margin", "–", kind="margin"),
+        Column("binding requirement", kind="text"),
+    ]
+    rows = []
+    for e in catalogue:
+        margins = {k: v for k, v in (e.get("margins") or {}).items() if isinstance(v, (int, float))}
+        binding = min(margins, key=margins.get) if margins else None
+        rows.append(
+            [
+                e["family"],
+                str(e["size"]),
+                cell(e.get("R_mm")),
+                cell(e.get("d_roller_mm")),
+                bool(e.get("feasible")),
+                cell(e.get("objective"))
+                if e.get("objective") is not None
+                else NotAvailable(e.get("note", "not evaluated")),
+                cell(margins[binding]) if binding else NotAvailable(e.get("note", "not evaluated")),
+                binding or "–",
+            ]
+        )
+    choice = report.get("catalogue_choice")
+    note = (
+        f"Choice: {choice['family']} {choice['size']}, the feasible size of lowest objective."
+        if choice
+        else "No size is feasible."
+    )
+    return Table("catalogue", "Catalogue (GE/GI sizes)", columns, rows, [note])
+
+
+def _pareto(report):
+    front = _get(report, "pareto_front")
+    if not front:
+        raise NotAvailable("the objective has no GAF term: no Pareto front was swept")
+    free = report.get("free_variables") or []
+    from tripodjax.optimize.spec import REPORT_KEYS, VARIABLES
+
+    keys = [REPORT_KEYS.get(v, v) for v in free]
+    columns = [Column("w_gaf_rms", "–")]
+    columns += [
+        Column(k.removesuffix(f"_{VARIABLES[v][2]}"), VARIABLES[v][2])
+        for v, k in zip(free, keys, strict=True)
+    ]
+    columns += [
+        Column("GAF RMS", "N"),
+        Column("outer diameter 2R + d", "mm"),
+        Column("irregularity", "–"),
+        Column("converged"),
+    ]
+    rows = [
+        [
+            cell(p.get("w_gaf_rms")),
+            *(cell(p.get(k)) for k in keys),
+            cell(p.get("gaf_rms_N")),
+            cell(p.get("outer_diameter_mm")),
+            cell(p.get("irregularity")),
+            bool(p.get("converged")),
+        ]
+        for p in front
+    ]
+    return Table("pareto_front", "Pareto front", columns, rows)
+
+
+def _history(report):
+    history = _get(report, "history")
+    columns = [
+        Column("outer iteration", "–"),
+        Column("objective", "–"),
+        Column("KKT residual", "–"),
+    ]
+    rows = [
+        [float(i), cell(f), cell(k)]
+        for i, (f, k) in enumerate(zip(history["objective"], history["kkt_residual"], strict=True))
+    ]
+    return Table("convergence", "Convergence history (chosen start)", columns, rows)
+
+
+SECTIONS = (
+    ("summary", "Summary", _summary),
+    ("requirements", "Requirements", _requirements),
+    ("quantities", "Quantities", _quantities),
+    ("life", "Life per working condition", _life),
+    ("damage", "Damage shares by load case", _damage),
+    ("reliability", "Reliability", _reliability),
+    ("sensitivities", "Sensitivities", _sensitivities),
+    ("switch", "Near-switch notes", _switch),
+    ("catalogue", "Catalogue (GE/GI sizes)", _catalogue),
+    ("pareto_front", "Pareto front", _pareto),
+    ("convergence", "Convergence history (chosen start)", _history),
+)
+
+
+def tables(report) -> dict:
+    """The report's tables ``{name: Table}``, in reading order; a table it cannot give says why."""
+    if not isinstance(report, dict):
+        report = {}
+    return {name: _section(title, name, build, report) for name, title, build in SECTIONS}
+
+
+# ---------------------------------------------------------------------------------------------
+# the resolved spec as TOML
+
+
+def _toml_value(value):
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)
+    if isinstance(value, (int, float)):
+        return (
+            repr(value)
+            if math.isfinite(value)
+            else ("inf" if value > 0 else "-inf" if value < 0 else "nan")
+        )
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if value is None:
+        raise NotAvailable("null")
+    raise NotAvailable(f"{value!r} has no TOML form")
+
+
+def spec_toml(spec, prefix=()):
+    """A resolved spec (nested dicts) as TOML text; a null (non-finite) value as a comment."""
+    lines, tables_ = [], []
+    for key, value in spec.items():
+        if isinstance(value, dict):
+            tables_.append((key, value))
+            continue
+        try:
+            lines.append(f"{key} = {_toml_value(value)}")
+        except NotAvailable as reason:
+            lines.append(f"# {key}: not available ({reason}: not finite when written)")
+    out = []
+    if prefix and lines:
+        out.append(f"[{'.'.join(prefix)}]")
+    out += lines
+    for key, value in tables_:
+        sub = spec_toml(value, (*prefix, key))
+        if sub:
+            out += ([""] if out else []) + [sub]
+    return "\n".join(out)
+
+
+# ---------------------------------------------------------------------------------------------
+# the page
+
+
+def image_uri(figure):
+    """A figure as a data URI: PNG bytes as they are (what ``optimize-joint`` wrote already,
+    no second rendering), a matplotlib Figure as SVG (text kept as text)."""
+    if isinstance(figure, bytes):
+        return "data:image/png;base64," + base64.b64encode(figure).decode("ascii")
+    import matplotlib
+
+    buffer = io.BytesIO()
+    with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": "tripodjax"}):
+        figure.savefig(buffer, format="svg")
+    return "data:image/svg+xml;base64," + base64.b64encode(buffer.getvalue()).decode("ascii")
+
+
+FIGURES = {  # the figure beside each table, by the name the CLI gives it
+    "requirements": ("constraint_margins.png", "Constraint margins at the proposed design"),
+    "damage": ("damage.png", "Damage shares"),
+    "reliability": ("importance.png", "Importance factors"),
+    "sensitivities": ("sensitivities.png", "Tornado chart of the largest elasticities"),
+    "catalogue": ("catalogue.png", "Catalogue sizes over the constraint landscape"),
+    "pareto_front": ("pareto_front.png", "Pareto front: GAF against joint size"),
+    "convergence": ("convergence.png", "Convergence of the chosen start"),
+}
+
+
+@functools.cache
+def _environment():
+    import jinja2
+
+    env = jinja2.Environment(
+        loader=jinja2.PackageLoader("tripodjax.optimize", "templates"),
+        autoescape=jinja2.select_autoescape(["html", "j2"], default=True),
+        undefined=jinja2.StrictUndefined,
+        trim_blocks=True,
+        lstrip_blocks=True,
+    )
+    env.filters["fmt"] = fmt
+    env.filters["exact"] = repr  # full precision in data-value: what a reader can check
+    env.tests["unavailable"] = lambda v: isinstance(v, NotAvailable)
+    return env
+
+
+def _current_version():
+    import tripodjax
+
+    return tripodjax.__version__
+
+
+def version_note(report):
+    """A sentence when the report was written by another tripodjax version, else None."""
+    written = (
+        ((report or {}).get("versions") or {}).get("tripodjax")
+        if isinstance(report, dict)
+        else None
+    )
+    current = _current_version()
+    if written != current:
+        return (
+            f"This report was written by tripodjax {written or 'of an unknown version'}; this page "
+            f'was rendered by tripodjax {current}: sections it cannot read say "not available".'
+        )
+    return None
+
+
+def render_html(report, figures=None) -> str:
+    """The report as one self-contained HTML page.
+
+    ``figures``: ``{file name: matplotlib Figure or PNG bytes}`` under the names the CLI
+    gives them (``FIGURES``), each shown beside its table.
+    """
+    figures = figures or {}
+    safe = report if isinstance(report, dict) else {}
+    images = {}
+    for table, (name, caption) in FIGURES.items():
+        if name in figures:
+            try:
+                images[table] = (image_uri(figures[name]), caption)
+            except (ValueError, RuntimeError, OverflowError) as error:  # a figure of bad numbers
+                images[table] = (NotAvailable(f"the figure could not be drawn: {error}"), caption)
+    try:
+        toml = spec_toml(_get(safe, "spec"))
+    except (NotAvailable, AttributeError) as reason:
+        toml = NotAvailable(str(reason))
+    written = safe.get("written") or {}
+    return (
+        _environment()
+        .get_template("report.html.j2")
+        .render(
+            title=f"tripodjax design report: {safe.get('spec_source', 'spec not named')}",
+            tables=tables(report),
+            images=images,
+            version_note=version_note(report),
+            versions=safe.get("versions") or {},
+            date=written.get("date", NotAvailable("not recorded")),
+            command=written.get("command", NotAvailable("not recorded")),
+            spec_toml=toml,
+            nonfinite=safe.get("nonfinite_notes") or [],
+        )
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# the workbook
+
+
+def prepare():
+    """Import Jinja2 and openpyxl and compile the templates now (``optimize-joint`` does it in
+    a thread beside the solve, so that writing the report later waits for neither)."""
+    env = _environment()
+    for name in ("report.html.j2", "compare.html.j2"):
+        env.get_template(name)
+    xlsx_missing()
+
+
+def xlsx_missing():
+    """The one line to print when openpyxl is not installed, else None."""
+    try:
+        import openpyxl  # noqa: F401
+    except ImportError:
+        return f"report.xlsx not written: it needs openpyxl ({XLSX_EXTRA})"
+    return None
+
+
+def write_xlsx(report, path):
+    """The report's tables as a workbook at ``path``: a sheet per table, header row frozen."""
+    from openpyxl import Workbook
+    from openpyxl.styles import Font
+
+    book = Workbook()
+    book.remove(book.active)
+    for table in tables(report).values():
+        sheet = book.create_sheet(table.name[:31])
+        if table.unavailable:
+            sheet.append([f"{table.title}: not available ({table.unavailable})"])
+            continue
+        sheet.append([c.label for c in table.columns])
+        for c in sheet[1]:
+            c.font = Font(bold=True)
+        for row in table.rows:
+            sheet.append([fmt(v) if isinstance(v, NotAvailable) else v for v in row])
+        sheet.freeze_panes = "A2"
+        for note in table.notes:
+            sheet.append([])
+            sheet.append([note])
+        for i, column in enumerate(table.columns):
+            width = (
+                max(len(column.label), *(len(fmt(r[i])) for r in table.rows))
+                if table.rows
+                else len(column.label)
+            )
+            sheet.column_dimensions[sheet.cell(1, i + 1).column_letter].width = min(width + 2, 60)
+    book.save(path)
+
+
+# ---------------------------------------------------------------------------------------------
+# writing
+
+
+def written_info(command=None):
+    """The date (UTC) and the command line (default: this process's), for the colophon."""
+    if command is None:
+        command = [os.path.basename(sys.argv[0]) or "python", *sys.argv[1:]]
+    return {
+        "date": datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC"),
+        "command": shlex.join(command),
+    }
+
+
+def documents(report, figures, formats=FORMATS):
+    """``({file name: writer(path)}, messages)`` for the html and xlsx among ``formats``."""
+    unknown = set(formats) - set(FORMATS)
+    if unknown:
+        raise ValueError(f"formats {sorted(unknown)} unknown; allowed: {', '.join(FORMATS)}")
+    writers, messages = {}, []
+    if "html" in formats:
+
+        def html(path, pngs):
+            with open(path, "w", encoding="utf-8") as f:
+                f.write(render_html(report, {**figures, **pngs}))
+
+        writers["report.html"] = html
+    if "xlsx" in formats:
+        missing = xlsx_missing()
+        if missing:
+            messages.append(missing)
+        else:
+            writers["report.xlsx"] = lambda path, pngs: write_xlsx(report, path)
+    return writers, messages
+
+
+def write_report(
+    result,
+    spec,
+    out_dir,
+    formats=FORMATS,
+    *,
+    pareto=(),
+    catalogue=None,
+    choice=None,
+    full_fidelity=None,
+    figures=None,
+    source="python",
+):
+    """Write the report of ``result`` (a [`Result`][tripodjax.optimize.Result] of ``spec``) into
+    ``out_dir``, atomically: ``report.json``, ``report.html``, ``report.xlsx`` as ``formats`` says,
+    and the PNG figures.
+
+    Args:
+        result: the solved design (``result.sensitivities`` filled in for the sensitivity table).
+        spec: its [`Spec`][tripodjax.optimize.Spec].
+        out_dir: the folder (created when absent).
+        formats: any of ``"json"``, ``"html"``, ``"xlsx"``.
+        pareto, catalogue, choice, full_fidelity: as ``optimize-joint`` computes them (optional).
+        figures: ``{file name: matplotlib Figure}``; by default the convergence, margins,
+            tornado, Pareto and catalogue figures that the inputs allow.
+        source: how the spec is named in the report.
+
+    Returns:
+        ``(report dict, messages)``: messages are one-line notes (e.g. openpyxl missing: the
+        workbook was not written, the other files were).
+    """
+    from tripodjax.optimize import report as _report
+
+    body = _report.report_dict(
+        result,
+        spec,
+        pareto=pareto,
+        catalogue=catalogue,
+        choice=choice,
+        full_fidelity=full_fidelity,
+        source=source,
+    )
+    body["written"] = written_info()
+    if figures is None:
+        figures = {
+            "convergence.png": _report.figure_convergence(result),
+            "constraint_margins.png": _report.figure_margins(result),
+        }
+        if catalogue is not None:
+            figures["catalogue.png"] = _report.figure_catalogue(result, catalogue, choice)
+        if pareto:
+            figures["pareto_front.png"] = _report.figure_pareto(result, list(pareto))
+        if result.sensitivities is not None and result.sensitivities["elasticities"]:
+            figures["sensitivities.png"] = _report.figure_tornado(result)
+    writers, messages = documents(body, figures, formats)
+    _report.write(out_dir, body, figures, writers, with_json="json" in formats)
+    return body, messages

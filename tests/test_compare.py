@@ -1,0 +1,102 @@
+"""optimize-joint compare: two runs (the default and M_max = 1300 N·m) side by side."""
+
+import json
+
+import pytest
+from browser import Page, executable
+from test_report_html import needs_chromium, run_cli
+
+from tripodjax.optimize import compare
+
+CHROMIUM = executable()
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    root = tmp_path_factory.mktemp("compare")
+    spec = root / "m1300.toml"
+    spec.write_text("[loads]\nM_max = 1300.0\n")
+    out = []
+    for name, args in (("default", ()), ("m1300", (str(spec),))):
+        done = run_cli(*args, "--out", str(root / name), "--progress", "off")
+        assert done.returncode == 0, done.stderr
+        out.append(root / name)
+    return root, out
+
+
+def margins_on_page(html):
+    import re
+
+    rows = re.findall(
+        r'<tr><td>(\w+)</td><td class="num (?:pass|fail)" data-value="([^"]+)">.*?'
+        r'<td class="num (?:pass|fail)" data-value="([^"]+)">',
+        html.split('id="margins"')[1].split("</table>")[0],
+    )
+    return {name: (float(a), float(b)) for name, a, b in rows}
+
+
+def test_compare_shows_the_changed_margins_and_the_spec_key(runs):
+    root, (a, b) = runs
+    page = root / "page.html"
+    done = run_cli("compare", str(a), str(b), "--out", str(page))
+    assert done.returncode == 0, done.stderr
+    assert "loads.M_max" in done.stdout
+    html = page.read_text(encoding="utf-8")
+    report_a = json.loads((a / "report.json").read_text())
+    report_b = json.loads((b / "report.json").read_text())
+    spec_rows = html.split('data-table="spec"')[1].split("</table>")[0]
+    assert "<td>loads.M_max</td>" in spec_rows and spec_rows.count("<tr>") == 2  # header + M_max
+    shown = margins_on_page(html)
+    assert set(shown) == set(report_a["constraints"])
+    for name in shown:
+        assert shown[name] == (
+            report_a["constraints"][name]["margin"],
+            report_b["constraints"][name]["margin"],
+        )
+    # A larger M_max raises the static-capacity limit: that margin changes.
+    changed = [n for n, (ma, mb) in shown.items() if abs(mb - ma) > 1e-6]
+    assert "static_capacity" in changed
+    rows = compare.comparison(report_a, report_b)
+    (objective,) = rows["objective"]
+    assert objective[4] == pytest.approx(report_b["objective"] - report_a["objective"], abs=0)
+    assert "<script" not in html.lower()
+
+
+@needs_chromium
+def test_compare_page_opens_offline_in_chromium(runs):
+    root, (a, b) = runs
+    page_path = root / "page-browser.html"
+    assert compare.main([str(a), str(b), "--out", str(page_path)]) == 0
+    with Page(CHROMIUM) as page:
+        page.open(page_path.as_uri())
+        assert page.console_errors() == []
+        assert [u for u in page.requests() if not u.startswith(("file:", "data:"))] == []
+        tables = page.evaluate(
+            "[...document.querySelectorAll('table[data-table]')].map(t => t.dataset.table)"
+        )
+    assert tables == ["spec", "design", "objective", "margins", "quantities"]
+
+
+def test_compare_bad_folders_exit_2_with_one_line(tmp_path, runs):
+    _, (a, _) = runs
+    (tmp_path / "broken").mkdir()
+    (tmp_path / "broken" / "report.json").write_text('{"objective": NaN}')
+    for args, fragment in (
+        ([str(a), str(tmp_path / "none")], "cannot read"),
+        ([str(a), str(tmp_path / "broken")], "not a strict-JSON report"),
+        ([str(a)], "DIR_B"),
+    ):
+        done = run_cli("compare", *args, "--out", str(tmp_path / "page.html"))
+        assert done.returncode == 2, done.stderr
+        assert len(done.stderr.strip().splitlines()) == 1 and fragment in done.stderr
+        assert "Traceback" not in done.stderr
+    assert not (tmp_path / "page.html").exists()
+
+
+def test_compare_of_reports_with_missing_parts_says_not_available(runs):
+    _, (a, _) = runs
+    report_a = json.loads((a / "report.json").read_text())
+    other = {"versions": {"tripodjax": "0.0.1"}, "constraints": {"life": {"margin": None}}}
+    html = compare.render(report_a, other)
+    assert "written by tripodjax 0.0.1" in html
+    assert "not available" in html and "null in the report" in html

@@ -1,0 +1,442 @@
+"""report.html and report.xlsx: read as a person would (headless Chromium), and read back."""
+
+import copy
+import json
+import math
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import tomllib
+from pathlib import Path
+
+import pytest
+from browser import Page, executable
+
+from tripodjax import optimize
+from tripodjax.optimize import document, report
+
+ROOT = Path(__file__).resolve().parent.parent
+# The example report and its screenshot, for the docs page (docs/hooks.py reads them).
+EXAMPLE = Path(os.environ.get("TRIPODJAX_REPORT_EXAMPLE") or ROOT / "build" / "report-example")
+CHROMIUM = executable()
+needs_chromium = pytest.mark.skipif(
+    CHROMIUM is None,
+    reason="no Chromium on PATH (.ci/run installs it: apt-get install chromium, as root)",
+)
+
+LIFE = {
+    "km": 123456.0,
+    "hours": 2345.5,
+    "required_km": 100000.0,
+    "angle_law": "workbook",
+    "M_max_forward_Nm": 1154.0,
+    "M_max_backward_Nm": 577.0,
+    "conditions": [
+        {"name": "main", "angle_deg": 6.5, "share": 0.45, "life_km": 150000.0, "damage_share": 0.4},
+        {
+            "name": "straight",
+            "angle_deg": 0.0,
+            "share": 0.2,
+            "life_km": 410000.0,
+            "damage_share": 0.1,
+        },
+        {
+            "name": "shock",
+            "angle_deg": 12.8,
+            "share": 0.35,
+            "life_km": 87654.3,
+            "damage_share": 0.5,
+        },
+    ],
+    "damage_by_case": [
+        {"mode": "forward", "gear": "1", "engine_condition": "full load", "damage_share": 0.75},
+        {"mode": "backward", "gear": "R", "engine_condition": "full load", "damage_share": 0.25},
+    ],
+}
+RELIABILITY = {
+    "method": "FORM and Monte Carlo",
+    "inputs": {"loads.M_max": "normal, 5 % coefficient of variation"},
+    "requirements": [
+        {
+            "name": "life",
+            "beta_form": 2.345,
+            "probability_form": 0.00951,
+            "probability_mc": 0.0102,
+            "mc_interval_95": [0.0085, 0.0121],
+            "samples": 20000,
+            "agree": True,
+            "importance": {"loads.M_max": 0.98},
+        }
+    ],
+    "system_probability_mc": 0.0117,
+    "system_interval_95": [0.0099, 0.0137],
+    "status": {"converged": True},
+}
+SWITCH = {"life": {"loads.M_max": 0.0123, "hertz.P_d": -0.0456}}
+
+
+def run_cli(*args):
+    command = [sys.executable, "-P", "-c", "from tripodjax.optimize.cli import command; command()"]
+    env = dict(
+        os.environ, TRIPODJAX_CACHE_DIR=os.path.join(tempfile.gettempdir(), "tripodjax-test-cache")
+    )
+    return subprocess.run([*command, *args], capture_output=True, text=True, timeout=900, env=env)
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("report")
+    done = run_cli("--out", str(out), "--progress", "off")
+    assert done.returncode == 0, done.stderr
+    return out, json.loads((out / "report.json").read_text())
+
+
+def with_sections(body):
+    body = copy.deepcopy(body)
+    body["life"] = LIFE
+    body["reliability"] = RELIABILITY
+    body["sensitivity_notes"]["switch_distance"] = SWITCH
+    body["sensitivity_notes"]["switch_step"] = 0.01
+    return body
+
+
+def test_cli_writes_a_self_contained_html_and_a_workbook_beside_the_json(run):
+    out, body = run
+    assert {"report.json", "report.html", "report.xlsx"} <= set(os.listdir(out))
+    assert not [n for n in os.listdir(out) if n.startswith(".")]  # nothing staged is left
+    html = (out / "report.html").read_text(encoding="utf-8")
+    assert "<script" not in html.lower()
+    # Every image and link is embedded: nothing for a browser to fetch.
+    references = re.findall(r"""(?:src|href)\s*=\s*["']([^"']*)""", html)
+    assert references and all(r.startswith("data:") for r in references)
+    assert "@page { size: A4" in html
+    assert body["written"]["command"].startswith("optimize-joint")
+    for name in ("Summary", "Requirements", "Quantities", "Sensitivities", "Catalogue"):
+        assert f"<h2>{name}" in html
+    # The contents in the reader's order.
+    order = [html.index(f'id="{t}"') for t in document.tables(body)] + [html.index('id="spec"')]
+    assert order == sorted(order)
+
+
+@needs_chromium
+def test_report_opens_offline_in_chromium_with_the_reports_numbers(run):
+    out, body = run
+    with Page(CHROMIUM) as page:
+        page.open((out / "report.html").as_uri())
+        assert page.console_errors() == []
+        assert [u for u in page.requests() if not u.startswith(("file:", "data:"))] == []
+        cells = page.evaluate(
+            """Object.fromEntries(["summary", "requirements", "quantities"].map(name => [name,
+               [...document.querySelectorAll(`table[data-table="${name}"] tbody tr`)].map(tr =>
+               [...tr.cells].map(td => [td.textContent.trim(), td.dataset.value ?? null]))]))"""
+        )
+        images = page.evaluate(
+            "[...document.images].map(i => [i.complete && i.naturalWidth > 0, i.alt])"
+        )
+        EXAMPLE.mkdir(parents=True, exist_ok=True)
+        page.screenshot(EXAMPLE / "report.png", height=1500)
+        page.pdf(EXAMPLE / "report.pdf")
+        # Printed: on the width of an A4 page within the page margins (186 mm), every table fits.
+        page.send("Emulation.setEmulatedMedia", session=True, media="print")
+        page.send(
+            "Emulation.setDeviceMetricsOverride",
+            session=True,
+            width=round(186 / 25.4 * 96),
+            height=1000,
+            deviceScaleFactor=1,
+            mobile=False,
+        )
+        overflow = page.evaluate(
+            """[...document.querySelectorAll("table, img")].filter(e =>
+               e.getBoundingClientRect().right > document.documentElement.clientWidth + 1)
+               .map(e => e.dataset.table || e.alt)"""
+        )
+    assert overflow == []
+    pdf = (EXAMPLE / "report.pdf").read_bytes()
+    boxes = {tuple(map(float, b.split())) for b in re.findall(rb"/MediaBox\s*\[([^\]]*)\]", pdf)}
+    assert len(boxes) == 1  # every page A4: 210 × 297 mm = 595.3 × 841.9 pt
+    assert next(iter(boxes)) == pytest.approx((0, 0, 595.3, 841.9), abs=1.5)
+    for name in ("report.html", "report.xlsx"):
+        (EXAMPLE / name).write_bytes((out / name).read_bytes())
+    assert (EXAMPLE / "report.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert pdf[:5] == b"%PDF-"
+    assert len(images) == 5 and all(ok for ok, _ in images), images
+
+    def value(text_and_value):
+        text, exact = text_and_value
+        assert exact is not None, text
+        number = float(exact)
+        shown = float(text.split()[0])  # the text shows the number rounded (5 digits)
+        assert shown == pytest.approx(number, rel=1e-4, abs=1e-12)
+        return number
+
+    summary = {row[0][0]: row for row in cells["summary"]}
+    assert value(summary["R"][2]) == body["design"]["R_mm"]
+    assert value(summary["d_roller"][2]) == body["design"]["d_roller_mm"]
+    assert value(summary["objective"][2]) == body["objective"]
+    assert value(summary["objective"][3]) == body["catalogue_choice"]["objective"]
+    assert (
+        summary["design"][3][0]
+        == f"{body['catalogue_choice']['family']} {body['catalogue_choice']['size']}"
+    )
+    for name, c in body["constraints"].items():
+        row = summary[f"margin {name}"]
+        assert value(row[2]) == c["margin"]
+        assert value(row[3]) == body["catalogue_choice"]["margins"][name]
+        assert ("✓ met" in row[2][0]) == (c["margin"] >= 0)  # not by colour alone
+    requirements = {row[0][0]: row for row in cells["requirements"]}
+    assert set(requirements) == set(body["constraints"])
+    for name, c in body["constraints"].items():
+        row = requirements[name]
+        assert row[1][0] == c["sense"] and row[4][0] == c["unit"]
+        assert [value(row[j]) for j in (2, 3, 5, 6)] == [
+            c["value"],
+            c["limit"],
+            c["margin"],
+            body["multipliers"][name],
+        ]
+        assert row[7][0] == ("yes" if name in body["sensitivity_notes"]["active"] else "no")
+    quantities = {row[0][0]: row for row in cells["quantities"]}
+    for name, q in body["quantities"].items():
+        assert value(quantities[name][2]) == q
+        assert quantities[name][1][0] == body["units"][name]
+
+
+@needs_chromium
+def test_optional_sections_render_in_chromium_and_say_why_when_absent(run, tmp_path):
+    out, body = run
+    page_with = tmp_path / "with.html"
+    page_with.write_text(document.render_html(with_sections(body)), encoding="utf-8")
+    with Page(CHROMIUM) as page:
+        page.open(page_with.as_uri())
+        assert page.console_errors() == []
+        life = page.evaluate(
+            """[...document.querySelectorAll('table[data-table="life"] tbody tr')].map(tr =>
+               [...tr.cells].map(td => td.dataset.value ?? td.textContent))"""
+        )
+        text = page.evaluate("document.body.innerText")
+    assert [row[0] for row in life] == ["main", "straight", "shock"]
+    assert [float(row[3]) for row in life] == [c["life_km"] for c in LIFE["conditions"]]
+    assert (
+        "Not available" not in text.split("Life per working condition")[1].split("Sensitivities")[0]
+    )
+    absent = document.render_html(body)
+    assert "Not available: the report has no life section" in absent
+    assert "Not available: the spec has no uncertainty" in absent
+    assert "Not available: the report has no switch distances" in absent
+
+
+def test_optional_sections_synthetic_tables_hold_their_numbers(run):
+    _, body = run
+    tables = document.tables(with_sections(body))
+    assert [r[4] for r in tables["life"].rows] == [c["damage_share"] for c in LIFE["conditions"]]
+    assert [r[3] for r in tables["damage"].rows] == [0.75, 0.25]
+    row = tables["reliability"].rows[0]
+    assert row[:7] == ["life", 2.345, 0.00951, 0.0102, 0.0085, 0.0121, 20000.0]
+    assert "loads.M_max (0.98)" in row[8]
+    assert sorted(r[2] for r in tables["switch"].rows) == [-0.0456, 0.0123]
+    assert "0.01" in tables["switch"].notes[0]
+    for name in ("life", "damage", "reliability", "switch"):
+        assert document.tables(body)[name].unavailable  # absent: a reason, not a blank
+
+
+def read_sheets(path):
+    openpyxl = pytest.importorskip("openpyxl")
+    book = openpyxl.load_workbook(path)
+    sheets = {}
+    for sheet in book.worksheets:
+        rows = [list(r) for r in sheet.iter_rows(values_only=True)]
+        assert sheet.freeze_panes == "A2" or len(rows) == 1
+        header, body = rows[0], []
+        for r in rows[1:]:
+            if all(v is None for v in r):
+                break  # the notes follow an empty row
+            body.append(dict(zip(header, r, strict=True)))
+        sheets[sheet.title] = body
+    return sheets
+
+
+def same(from_xlsx, from_json):
+    """Equal, floats to the 16 significant digits openpyxl writes ("%.16g")."""
+    assert len(from_xlsx) == len(from_json)
+    for x, j in zip(from_xlsx, from_json, strict=True):
+        if isinstance(j, float) and not isinstance(j, bool):
+            # "%.16g" writes 0.0 as 0: read back as an int, still a number
+            assert isinstance(x, (int, float)) and x == pytest.approx(j, rel=1e-15, abs=0), (x, j)
+        else:
+            assert x == j
+    return True
+
+
+def test_xlsx_round_trips_every_number_of_the_json(run):
+    out, body = run
+    sheets = read_sheets(out / "report.xlsx")
+    assert {
+        "summary",
+        "requirements",
+        "quantities",
+        "life",
+        "sensitivities",
+        "catalogue",
+        "pareto_front",
+    } <= set(sheets)
+    requirements = {r["requirement"]: r for r in sheets["requirements"]}
+    assert set(requirements) == set(body["constraints"])
+    full = body["full_fidelity"]
+    for name, c in body["constraints"].items():
+        r = requirements[name]
+        columns = ("value", "limit", "margin ln(value/limit) [–]", "multiplier [–]")
+        assert same(
+            [r[k] for k in columns] + [r["at full fidelity: margin [–]"]],
+            [
+                c["value"],
+                c["limit"],
+                c["margin"],
+                body["multipliers"][name],
+                full["constraints"][name],
+            ],
+        )
+    quantities = {r["quantity"]: r for r in sheets["quantities"]}
+    assert set(quantities) == set(body["quantities"])
+    for name, q in body["quantities"].items():
+        r = quantities[name]
+        assert same(
+            [r["unit"], r["proposed design"], r["catalogue choice"], r["at full fidelity"]],
+            [
+                body["units"][name],
+                q,
+                body["catalogue_choice"]["quantities"][name],
+                full["quantities"][name],
+            ],
+        )
+    summary = {r["item"]: r for r in sheets["summary"]}
+    choice = body["catalogue_choice"]
+    assert same(
+        [summary[k]["proposed design"] for k in ("R", "d_roller", "objective")],
+        [body["design"]["R_mm"], body["design"]["d_roller_mm"], body["objective"]],
+    )
+    assert same(
+        [summary[k]["catalogue choice"] for k in ("R", "d_roller", "objective")],
+        [choice["R_mm"], choice["d_roller_mm"], choice["objective"]],
+    )
+    for name, c in body["constraints"].items():
+        row = summary[f"margin {name}"]
+        assert same(
+            [row["proposed design"], row["catalogue choice"]],
+            [c["margin"], choice["margins"][name]],
+        )
+    catalogue = sheets["catalogue"]
+    assert len(catalogue) == len(body["catalogue"])
+    for r, e in zip(catalogue, body["catalogue"], strict=True):
+        assert same(
+            [r[k] for k in ("family", "size", "R [mm]", "d [mm]", "feasible", "objective [–]")],
+            [e["family"], e["size"], e["R_mm"], e["d_roller_mm"], e["feasible"], e["objective"]],
+        )
+        assert same([r["binding margin [–]"]], [min(e["margins"].values())])
+    columns = {
+        "w_gaf_rms [–]": "w_gaf_rms",
+        "R [mm]": "R_mm",
+        "d_roller [mm]": "d_roller_mm",
+        "GAF RMS [N]": "gaf_rms_N",
+        "outer diameter 2R + d [mm]": "outer_diameter_mm",
+        "irregularity [–]": "irregularity",
+        "converged": "converged",
+    }
+    for x, j in columns.items():
+        assert same([r[x] for r in sheets["pareto_front"]], [p[j] for p in body["pareto_front"]])
+    history = body["history"]
+    assert same([r["objective [–]"] for r in sheets["convergence"]], history["objective"])
+    assert same([r["KKT residual [–]"] for r in sheets["convergence"]], history["kkt_residual"])
+    sensitivities = {r["spec key"]: r for r in sheets["sensitivities"]}
+    assert len(sensitivities) == min(len(body["sensitivities"]), document.SENSITIVITY_ROWS)
+    for key, r in sensitivities.items():
+        d = body["sensitivities"][key]
+        assert same(
+            [r["d objective / d p [– per unit of p]"], r["d R / d p [mm per unit of p]"]],
+            [d["objective"], d["R"]],
+        )
+        assert same([r["d d_roller / d p [mm per unit of p]"]], [d["d_roller"]])
+    # Numbers are numbers, not text.
+    assert all(isinstance(r["value"], (int, float)) for r in sheets["requirements"])
+    # The optional sections absent from this run: a sheet that says why, no rows.
+    assert sheets["life"] == [] and sheets["reliability"] == []
+
+
+def test_xlsx_of_the_optional_sections(run, tmp_path):
+    _, body = run
+    document.write_xlsx(with_sections(body), tmp_path / "r.xlsx")
+    sheets = read_sheets(tmp_path / "r.xlsx")
+    assert [r["life [km]"] for r in sheets["life"]] == [c["life_km"] for c in LIFE["conditions"]]
+    assert [r["share of the damage [–]"] for r in sheets["damage"]] == [0.75, 0.25]
+    assert sheets["reliability"][0]["β (FORM) [–]"] == 2.345
+
+
+def test_without_openpyxl_one_line_names_the_extra_and_the_rest_is_written(
+    run, tmp_path, monkeypatch
+):
+    _, body = run
+    monkeypatch.setitem(sys.modules, "openpyxl", None)  # import openpyxl raises ImportError
+    writers, messages = document.documents(body, {})
+    assert set(writers) == {"report.html"}
+    assert len(messages) == 1 and "\n" not in messages[0] and "tripodjax[report]" in messages[0]
+    report.write(tmp_path, body, {}, writers)
+    assert sorted(os.listdir(tmp_path)) == ["report.html", "report.json"]
+
+
+def test_bad_input_renders_not_available_with_its_reason(run):
+    _, body = run
+    old = copy.deepcopy(body)
+    old["versions"]["tripodjax"] = "0.0.1"
+    del old["constraints"]
+    old["quantities"]["gaf_rms"] = math.nan
+    old["quantities"]["life_km"] = None
+    old["catalogue"] = "not a list"
+    html = document.render_html(old)
+    assert "written by tripodjax 0.0.1" in html
+    assert "Not available: the report has no constraints" in html
+    assert 'not available <span class="reason">(nan is not finite)</span>' in html
+    assert "(null in the report (not finite when computed))" in html
+    assert "Not available: the report&#39;s catalogue cannot be read" in html
+    tables = document.tables(old)
+    assert tables["quantities"].rows and tables["requirements"].unavailable
+    for broken in (None, [], {}, {"versions": None, "design": 3}):
+        page = document.render_html(broken)
+        assert page.count("Not available:") >= len(document.SECTIONS) - 1
+    # Bad input to the xlsx writer: the sheets say why instead of failing.
+    with tempfile.TemporaryDirectory() as tmp:
+        document.write_xlsx(old, os.path.join(tmp, "r.xlsx"))
+        assert read_sheets(os.path.join(tmp, "r.xlsx"))["requirements"] == []
+
+
+def test_text_is_escaped_and_the_spec_is_valid_toml(run):
+    _, body = run
+    hostile = copy.deepcopy(body)
+    hostile["spec_source"] = "<script>alert(1)</script>"
+    html = document.render_html(hostile)
+    assert "<script>" not in html and "&lt;script&gt;" in html
+    assert tomllib.loads(document.spec_toml(body["spec"])) == body["spec"]
+    hostile["spec"]["bounds"]["R"] = [15.0, None]  # a non-finite bound, written as null
+    assert "not available" in document.spec_toml(hostile["spec"])
+
+
+def test_write_report_from_python(tmp_path):
+    spec = optimize.load_spec().replace_values(
+        solver={"fidelity": "analytic", "n_theta": 24, "starts": 1, "max_outer": 3}
+    )
+    result = optimize.solve(spec, progress=False)
+    body, messages = optimize.write_report(result, spec, tmp_path / "all")
+    assert messages == []
+    assert {"report.json", "report.html", "report.xlsx", "convergence.png"} <= set(
+        os.listdir(tmp_path / "all")
+    )
+    assert json.loads((tmp_path / "all" / "report.json").read_text()) == body
+    optimize.write_report(result, spec, tmp_path / "html", formats=("html",))
+    assert "report.json" not in os.listdir(tmp_path / "html")
+    assert "report.html" in os.listdir(tmp_path / "html")
+    with pytest.raises(ValueError, match="pdf"):
+        optimize.write_report(result, spec, tmp_path / "bad", formats=("pdf",))
+    # Figures given as matplotlib Figures are embedded as SVG.
+    page = document.render_html(body, {"convergence.png": report.figure_convergence(result)})
+    assert "data:image/svg+xml;base64," in page
