@@ -220,7 +220,7 @@ class Interrupting:  # a figure whose saving is interrupted half-way
 
 cli._install_handlers()
 outcome = dict(body={{"a": 1}}, figures={{"a.png": Interrupting(), "b.png": Figure()}},
-               message="m", code=0, designs="d", status="s")
+               documents={{}}, notes=[], message="m", code=0, designs="d", status="s")
 cli._write(type("A", (), {{"out": {str(out)!r}}}), outcome)
 print("not reached")
 """
