@@ -212,14 +212,13 @@ import os, signal
 from matplotlib.figure import Figure
 from tripodjax.optimize import cli
 
-class Interrupting:  # a figure whose saving is interrupted half-way
-    def savefig(self, path, **kw):
-        open(path, "wb").write(b"partial")
+class Interrupting:  # a figure whose saving is interrupted while a.png is staged
+    def savefig(self, target, **kw):
         os.kill(os.getpid(), signal.SIGTERM)
-        Figure().savefig(path, **kw)
+        Figure().savefig(target, **kw)
 
 cli._install_handlers()
-outcome = dict(body={{"a": 1}}, figures={{"a.png": Interrupting(), "b.png": Figure()}},
+outcome = dict(body={{"a": 1}}, figures={{"a.png": Figure(), "b.png": Interrupting()}},
                documents={{}}, notes=[], message="m", code=0, designs="d", status="s")
 cli._write(type("A", (), {{"out": {str(out)!r}}}), outcome)
 print("not reached")
