@@ -9,9 +9,15 @@
   [`pareto_front`][tripodjax.optimize.pareto_front] — many scenarios in one batch.
 - [`sensitivities`][tripodjax.optimize.sensitivities] — how the optimum moves with each number.
 - [`evaluate_catalogue`][tripodjax.optimize.evaluate_catalogue] — the GE/GI sizes under the spec.
+- [`life_report`][tripodjax.optimize.life_report] — the life of a design, its damage by condition, gear and mode.
 """
 
-from tripodjax.optimize.problem import constraint_landscape, evaluate, evaluate_catalogue
+from tripodjax.optimize.problem import (
+    constraint_landscape,
+    evaluate,
+    evaluate_catalogue,
+    life_report,
+)
 from tripodjax.optimize.sensitivity import sensitivities
 from tripodjax.optimize.solver import Result, pareto_front, solve, solve_family
 from tripodjax.optimize.spec import (
@@ -34,6 +40,7 @@ __all__ = [
     "constraint_landscape",
     "evaluate",
     "evaluate_catalogue",
+    "life_report",
     "load_spec",
     "pareto_front",
     "parse_spec",
