@@ -158,7 +158,11 @@ def load_cycles(structure, values):
         reverse_load_transfer=v["reverse_load_transfer_N"],
         differential_locking=v["differential_locking"],
     )
-    use = [jnp.asarray(modes[f"use_{c}_pct"]) / 100.0 for c in vehicle.ENGINE_CONDITIONS]
+    shape = (len(structure.vehicle_modes), -1)  # the spec keeps them flat, mode-major
+    use = [
+        jnp.reshape(jnp.asarray(modes[f"use_{c}_pct"]), shape) / 100.0
+        for c in vehicle.ENGINE_CONDITIONS
+    ]
     use_modes = vehicle.DrivingModes(weight=modes["weight"], use=jnp.stack(use, axis=-1))
     return vehicle.load_cycles(car, use_modes, values["life"]["required_km"], axle=structure.axle)
 

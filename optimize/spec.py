@@ -619,8 +619,8 @@ def _vehicle(table):
                     f"{where} has {len(row)} entries; allowed: {len(ratios) + 1}, one per gear of "
                     "vehicle.gears.ratios and reverse last"
                 )
-        use[key] = np.asarray(rows)
-    total = sum(use.values())
+        use[key] = np.asarray(rows).ravel()  # 1-D leaves: mode-major (mode, gear)
+    total = sum(use.values()).reshape(len(names), -1)
     for i, name in enumerate(names):
         if np.sum(total[i]) > 100.0 + 1e-9:
             raise SpecError(

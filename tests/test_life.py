@@ -327,3 +327,72 @@ def test_spectrum_csv_names_the_bad_line(tmp_path, text, message):
     with pytest.raises(ValueError) as info:
         life.read_spectrum_csv(path)
     assert message in str(info.value)
+
+
+# --------------------------------------------------------------------------- in the spec
+
+
+def test_spec_spectrum_file_is_read_relative_to_the_spec_folder(tmp_path, monkeypatch):
+    from tripodjax import optimize
+
+    folder = tmp_path / "job"
+    (folder / "data").mkdir(parents=True)
+    (folder / "data" / "measured.csv").write_text(
+        "torque_Nm,speed_rpm,vehicle_speed_kmh,hours\n1000,300,40,1\n400,800,100,3\n"
+    )
+    (folder / "spec.toml").write_text('[life]\nspectrum_file = "data/measured.csv"\n')
+    monkeypatch.chdir(tmp_path)  # not the spec's folder
+    spec = optimize.load_spec(folder / "spec.toml")
+    assert not spec.structure.spectrum_from_vehicle and spec.structure.m_max_from_vehicle
+    np.testing.assert_allclose(spec.values["life"]["share"], [0.25, 0.75])
+    out = optimize.life_report(spec, {"R": 25.55, "d_roller": 43.5})
+    expected = life.joint_life(
+        43.5,
+        25.55,
+        life.read_spectrum_csv(folder / "data" / "measured.csv"),
+        life.WorkingConditions(
+            spec.values["life"]["condition_angle"], spec.values["life"]["condition_share"]
+        ),
+        conformity=1.002,
+        P_d=1347.0,
+        C_s=1.2,
+    )
+    assert out["km"] == pytest.approx(float(expected.km), rel=1e-12)
+    assert [c["case"] for c in out["damage_by_case"]] == [0, 1]
+    (folder / "bad.toml").write_text('[life]\nspectrum_file = "data/bad.csv"\n')
+    (folder / "data" / "bad.csv").write_text(
+        "torque_Nm,speed_rpm,vehicle_speed_kmh,hours\n1000,300,40,1\n400,x,100,3\n"
+    )
+    with pytest.raises(
+        optimize.SpecError, match=r"bad.csv line 3: speed_rpm = 'x' is not a number"
+    ):
+        optimize.load_spec(folder / "bad.toml")
+
+
+def test_evaluate_gives_the_damage_by_condition_gear_and_mode():
+    from tripodjax import optimize
+
+    spec = optimize.load_spec()
+    out = optimize.evaluate(spec, {"R": 25.55, "d_roller": 43.5})["life"]
+    assert out["angle_law"] == "workbook" and out["required_km"] == 100_000.0
+    cases = out["damage_by_case"]
+    assert len(cases) == 3 * 7 * 4  # modes × (6 gears + reverse) × engine conditions
+    assert sum(c["damage_share"] for c in cases) == pytest.approx(1.0, rel=1e-12)
+    assert all(
+        c["damage_share"] == 0 for c in cases if c["engine_condition"] in ("T_mean", "brake")
+    )
+    # By hand: each case's r_i M_i³ (revolution share × torque³) over the sum.
+    from tripodjax.optimize.problem import load_cycles
+
+    cycles = load_cycles(spec.structure, spec.values)
+    terms = np.asarray(cycles.share) * np.asarray(cycles.working_torque) ** 3
+    sport_1st_T_max = [
+        c for c in cases if (c["mode"], c["gear"], c["engine_condition"]) == ("sport", "1", "T_max")
+    ][0]
+    assert sport_1st_T_max["damage_share"] == pytest.approx(terms[0, 0, 1] / terms.sum(), rel=1e-6)
+    shares = [c["damage_share"] for c in out["conditions"]]
+    assert sum(shares) == pytest.approx(1.0) and shares[1] == shares[2] == 0.0
+    km = [c["life_km"] for c in out["conditions"]]
+    assert 1 / sum(
+        c["share"] / k for c, k in zip(out["conditions"], km, strict=True)
+    ) == pytest.approx(out["km"], rel=1e-12)
