@@ -58,7 +58,7 @@ def test_evaluate_against_the_physics_computed_independently():
     assert out["constraints"]["static_capacity"] == pytest.approx(
         math.log(float(caps.M_s) / (1.1 * 1.1 * max(workbook_wheel_torques()))), rel=1e-10
     )
-    M_d = float(caps.M_d) / (0.5 * (1 + math.cos(math.radians(20))))  # M_d at 0°
+    M_d = float(caps.M_d)  # at 0°
     assert out["quantities"]["life_km"] == pytest.approx(workbook_combined_km(M_d), rel=1e-10)
     assert out["life"]["km"] == out["quantities"]["life_km"]
     assert out["constraints"]["min_R_over_d"] == pytest.approx(
@@ -304,7 +304,7 @@ def test_scipy_slsqp_agrees_on_the_design(envelope):
 
 def test_free_layout_with_an_eccentricity_limit():
     spec = optimize.parse_spec(
-        "[bounds]\ngamma0_deg = [18.0, 25.0]\nl = [400.0, 600.0]\n[constraints]\nmax_eccentricity = 0.5\n"
+        "[bounds]\ngamma0_deg = [18.0, 25.0]\nl = [400.0, 600.0]\n[constraints]\nmax_eccentricity = 0.55\n"
         "min_R_over_d = 0.4"  # the limit fixes R, the life d: below the default R/d range
     )
     assert spec.structure.free == ("R", "d_roller", "l", "gamma0_deg")
@@ -312,7 +312,7 @@ def test_free_layout_with_an_eccentricity_limit():
     free = spec.structure.free
     check = optimize.evaluate(spec, {k: ours.design[k] for k in free})
     assert ours.feasible and min(check["constraints"].values()) >= 0
-    assert check["quantities"]["eccentricity"] <= 0.5
+    assert check["quantities"]["eccentricity"] <= 0.55
     peer = _slsqp(spec, free, [(25.0, 35.0, 500.0, 20.0), (19.0, 47.0, 550.0, 19.0)])
     assert peer is not None, "the SLSQP peer found no feasible design"
     assert ours.objective <= peer.fun * 1.005
@@ -320,7 +320,8 @@ def test_free_layout_with_an_eccentricity_limit():
 
 def test_sensitivities_agree_with_reoptimising(default_result):
     sens = sensitivities(SPEC, default_result)
-    for section, key in (("vehicle", "tyre_radius_m"), ("layout", "gamma0_deg"), ("hertz", "P_d")):
+    # (γ0 moves the objective only: R and d sit on the life and R/d limits, which γ0 does not enter.)
+    for section, key in (("vehicle", "tyre_radius_m"), ("vehicle", "adhesion"), ("hertz", "P_d")):
         value = SPEC.resolved[section][key]
         h = 0.005 * value
         plus = optimize.solve(SPEC.replace_values(**{section: {key: value + h}}), progress=False)
@@ -337,11 +338,15 @@ def test_sensitivities_agree_with_reoptimising(default_result):
 
 
 def test_catalogue_margins_equal_evaluate_and_the_choice_is_the_best_feasible():
-    entries, choice = evaluate_catalogue(SPEC)
+    # No catalogue size lives 100 000 km in the workbook's vehicle (the largest d²R within the R/d
+    # range, GI 720, is 13 % short); at 60 000 km GI 720 does.
+    assert evaluate_catalogue(SPEC)[1] is None
+    life = "[life]\nrequired_km = 60000.0\n"
+    entries, choice = evaluate_catalogue(optimize.parse_spec(life))
     assert {e["family"] for e in entries} == {"GE", "GI"} and len(entries) == 15
     for e in entries[::4]:
         out = optimize.evaluate(
-            optimize.parse_spec("[bounds]\nR = [1.0, 90.0]\nd_roller = [1.0, 90.0]"),
+            optimize.parse_spec(life + "[bounds]\nR = [1.0, 90.0]\nd_roller = [1.0, 90.0]"),
             {"R": e["R_mm"], "d_roller": e["d_roller_mm"]},
         )
         for name, margin in e["margins"].items():

@@ -62,10 +62,11 @@ def test_cli_default_exits_0_and_writes_a_strict_report(cli_run):
     assert report["design"]["R_mm"] == pytest.approx(R, rel=2e-3)
     assert report["design"]["d_roller_mm"] == pytest.approx(d, rel=2e-3)
     assert "catalogue:" in result.stdout and "ad hoc:" in result.stdout
-    choice = report["catalogue_choice"]
-    assert choice["feasible"] and choice == min(
-        (e for e in report["catalogue"] if e["feasible"]), key=lambda e: e["objective"]
+    # No catalogue size lives 100 000 km in the workbook's vehicle (test_optimize.py).
+    assert report["catalogue_choice"] is None and not any(
+        e["feasible"] for e in report["catalogue"]
     )
+    assert "catalogue: none feasible" in result.stdout
     assert "layout.gamma0_deg" in report["sensitivities"]
     for key in ("vehicle.tyre_radius_m", "vehicle.adhesion"):
         assert report["sensitivities"][key]["d_roller"] != 0, key
