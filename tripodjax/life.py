@@ -18,9 +18,11 @@ combine by Miner's rule, 1/L = Σ w_j / L_j. The life at an angle is the life at
   workbook** (seed fig. 4.3.10, the tripod column): the seed does not print the
   macro's law; this smooth form with g(0) = 1 passes exactly through its two
   readable points, 6.5° → 164 088 km and 12.8° → 99 204 km from 244 574 km at
-  0°. It implies 8.0° for the unreadable "shock +" condition (its "P" entry
-  58 %) and then gives the combined 129 265 km against the printed 129 277 km
-  (−0.01 %). Outside 0–12.8° it is an extrapolation.
+  0° (error 0 at both by construction). It implies 8.0° for the unreadable
+  "shock +" condition (from the combined life; its "P" entry is then 58.2 %,
+  printed 58 %), the "P" row 44.7 / 58.2 / 86.3 % (printed 45 / 58 / 86) and the
+  combined 129 265 km against the printed 129 277 km (−0.01 %). Outside 0–12.8°
+  it is an extrapolation.
 - ``"seed"``: the seed's printed factor ½(1 + cos γ) in M_d, i.e.
   g(γ) = (½(1 + cos γ))³ (0.990 at 6.5°, 0.963 at 12.8°): about 1.5× and
   2.4× the workbook's lives there.
