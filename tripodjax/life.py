@@ -54,9 +54,11 @@ from tripodjax._checks import (
 )
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.hertz import (
+    _all_finite,
     _check_angles,
     _check_n_rollers,
     _conformity_coefficient,
+    _nan_unless,
     _torque_at_pressure,
     check_conformity,
 )
@@ -120,17 +122,6 @@ def _damage_rate(M_d, torque, speed, share):
     return jnp.sum(terms, axis=-1), terms
 
 
-def _finite(*values):
-    ok = jnp.asarray(True)
-    for value in values:
-        ok = ok & jnp.all(jnp.isfinite(jnp.asarray(value)))
-    return ok
-
-
-def _nan_unless(ok, value):
-    return jnp.where(ok, value, jnp.nan)
-
-
 def _hours(rate):
     """1 / damage rate, ``inf`` for a rate of 0 (no division warning, no NaN gradient)."""
     safe = jnp.where(rate > 0, rate, 1.0)
@@ -152,7 +143,7 @@ def life_hours(M_d: ArrayLike, torque: ArrayLike, speed: ArrayLike, share: Array
     check_non_negative("speed", speed, " rpm")
     check_shares("share", share)
     rate, _ = _damage_rate(M_d, torque, speed, share)
-    ok = jnp.all(_finite(M_d, torque, speed, share))
+    ok = jnp.all(_all_finite(M_d, torque, speed, share))
     return _nan_unless(ok, _hours(rate))
 
 
@@ -315,7 +306,7 @@ def joint_life(
     damaged = rate > 0
     scale = jnp.where(damaged, rate, 1.0)
     case_total = jnp.sum(terms, axis=-1, keepdims=True)
-    ok = _finite(
+    ok = _all_finite(
         M_d, angle, g, w, spectrum.torque, spectrum.speed, spectrum.share, spectrum.vehicle_speed
     )
     hours = _hours(rate)
