@@ -217,10 +217,12 @@ def objective_and_margins(structure, values, x):
 def limits(structure, values):
     """name → (quantity, limit, sense, unit) of each constraint, for reports."""
     loads = values["loads"]
+    with jax.enable_x64(True):  # the vehicle's M_max in float64, as the solve
+        torque = float(m_max(structure, values))
     out = {
         "static_capacity": (
             "static_capacity",
-            float(loads["shock_factor"] * m_max(structure, values)),
+            float(loads["shock_factor"] * torque),
             "≥",
             "N·m",
         ),
