@@ -627,6 +627,19 @@ def _vehicle(table):
                 f"vehicle.modes use_*_pct of mode {name!r} sum to {np.sum(total[i]):g} %; at most 100 % "
                 "of its revolutions"
             )
+    share = numbers["rear_torque_share"] if axle == "rear" else 1.0 - numbers["rear_torque_share"]
+    if share == 0:
+        raise SpecError(
+            f"vehicle.axle = {axle!r} with vehicle.rear_torque_share = "
+            f"{numbers['rear_torque_share']:g}: that axle's shafts carry no torque"
+        )
+    if not np.any(total * np.asarray(weight)[:, None] > 0) or not any(
+        t > 0 for t in numbers["engine_torque_Nm"]
+    ):
+        raise SpecError(
+            "vehicle.modes use_*_pct (weighted by vehicle.modes.weight) or vehicle.engine_torque_Nm "
+            "are all 0: no load cycle, the life would be infinite"
+        )
     sections = {
         "vehicle": numbers,
         "vehicle.gears": {"ratios": np.asarray(ratios), "reverse": reverse},

@@ -158,6 +158,13 @@ LISTS = (
         ),
         ("[vehicle.modes]\nuse_T_max_pct = " + str([90.0] * 7), "sum to"),
         ("[vehicle]\nfront_share = 1.5", "vehicle.front_share = 1.5 is not allowed"),
+        ('[vehicle]\naxle = "front"', "vehicle.axle = 'front' with vehicle.rear_torque_share = 1"),
+        (
+            "[vehicle.modes]\nweight = [0.0, 0.0, 1.0]\nuse_T_max_pct = [[1, 1, 1, 1, 1, 1, 1], "
+            "[1, 1, 1, 1, 1, 1, 1], [0, 0, 0, 0, 0, 0, 0]]\nuse_P_max_pct = [0, 0, 0, 0, 0, 0, 0]",
+            "the life would be infinite",
+        ),
+        ("[vehicle]\nengine_torque_Nm = [0.0, 0.0, 0.0, 0.0]", "the life would be infinite"),
         ("[life.conditions]\nnames = 5", "life.conditions.names = 5 must be a list of strings"),
         ('[loads]\nM_max = "big"', "loads.M_max = 'big' must be a number"),
         ("[solver]\nn_theta = 100", "solver.n_theta = 100 is not allowed"),
