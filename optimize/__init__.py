@@ -10,6 +10,7 @@
 - [`sensitivities`][tripodjax.optimize.sensitivities] — how the optimum moves with each number.
 - [`evaluate_catalogue`][tripodjax.optimize.evaluate_catalogue] — the GE/GI sizes under the spec.
 - [`write_report`][tripodjax.optimize.write_report] — report.json, report.html and report.xlsx.
+- [`life_report`][tripodjax.optimize.life_report] — the life of a design, its damage by condition, gear and mode.
 """
 
 import importlib
@@ -22,6 +23,7 @@ _ATTRIBUTES = {
     "write_report": "document",
     "evaluate": "problem",
     "evaluate_catalogue": "problem",
+    "life_report": "problem",
     "sensitivities": "sensitivity",
     "Result": "solver",
     "pareto_front": "solver",
@@ -38,7 +40,12 @@ _ATTRIBUTES = {
 
 if typing.TYPE_CHECKING:  # what the lazy attributes are, for type checkers and the docs
     from tripodjax.optimize.document import write_report
-    from tripodjax.optimize.problem import constraint_landscape, evaluate, evaluate_catalogue
+    from tripodjax.optimize.problem import (
+        constraint_landscape,
+        evaluate,
+        evaluate_catalogue,
+        life_report,
+    )
     from tripodjax.optimize.sensitivity import sensitivities
     from tripodjax.optimize.solver import Result, pareto_front, solve, solve_family
     from tripodjax.optimize.spec import (
@@ -74,6 +81,7 @@ __all__ = [
     "constraint_landscape",
     "evaluate",
     "evaluate_catalogue",
+    "life_report",
     "load_spec",
     "pareto_front",
     "parse_spec",

@@ -256,7 +256,12 @@ def _compute(args, spec, command_line):
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
     from tripodjax.optimize import document, report
     from tripodjax.optimize._compiled import export_cache, rows_per_call
-    from tripodjax.optimize.problem import constraint_landscape, evaluate, evaluate_catalogue
+    from tripodjax.optimize.problem import (
+        constraint_landscape,
+        evaluate,
+        evaluate_catalogue,
+        life_report,
+    )
     from tripodjax.optimize.sensitivity import sensitivities
     from tripodjax.optimize.solver import _with, run
 
@@ -310,6 +315,11 @@ def _compute(args, spec, command_line):
         figures["pareto_front.png"] = report.figure_pareto(result, pareto)
     if result.sensitivities is not None and result.sensitivities["elasticities"]:
         figures["sensitivities.png"] = report.figure_tornado(result)
+    try:
+        life = life_report(spec, result.design)
+        figures["damage.png"] = report.figure_damage(life)
+    except ValueError:  # a design outside the domain (a failed solve): no life section
+        life = None
     body = report.report_dict(
         result,
         spec,
@@ -318,6 +328,7 @@ def _compute(args, spec, command_line):
         choice=choice,
         full_fidelity=full,
         source=args.spec or "default",
+        life=life,
     )
     message, code = _verdict(result)
     body["message"] = message

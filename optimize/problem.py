@@ -30,7 +30,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from tripodjax import friction, hertz
+from tripodjax import friction, hertz, life, vehicle
 from tripodjax._checks import check_instance, check_layout_domain, real_scalar
 from tripodjax.kinematics import metrics_from, revolution
 from tripodjax.layout import Layout
@@ -126,26 +126,7 @@ def quantities(structure, values, design):
         )
         q.update(static_capacity=caps.M_s, M_d=caps.M_d, M_sd=caps.M_sd)
         hertz_codes.append(caps.result)
-    life = values["life"]
-    spectrum = hertz.LoadSpectrum(
-        torque=life["torque"],
-        speed=life["speed"],
-        vehicle_speed=life["vehicle_speed"],
-        share=life["share"],
-    )
-    conditions = hertz.WorkingConditions(
-        angle=life["condition_angle"], share=life["condition_share"]
-    )
-    life_result = hertz.joint_life(
-        d,
-        R,
-        spectrum,
-        conditions,
-        conformity=design["conformity"],
-        P_d=h["P_d"],
-        C_s=h["C_s"],
-        n_rollers=structure.n_rollers,
-    )
+    life_result = joint_life(structure, values, design)
     q["life_km"] = life_result.km
     hertz_codes.append(life_result.result)
     q["outer_diameter"] = 2.0 * R + d
@@ -156,6 +137,65 @@ def quantities(structure, values, design):
     return q, jnp.stack([worst(*codes), worst(*hertz_codes)])
 
 
+def load_cycles(structure, values):
+    """The vehicle's [`LoadCycles`][tripodjax.vehicle.LoadCycles] (the spec's [vehicle] and its k_s)."""
+    v, gears, modes = values["vehicle"], values["vehicle.gears"], values["vehicle.modes"]
+    car = vehicle.Vehicle(
+        mass=v["mass_kg"],
+        front_share=v["front_share"],
+        wheelbase=v["wheelbase_m"],
+        cg_height=v["cg_height_m"],
+        tyre_radius=v["tyre_radius_m"],
+        adhesion=v["adhesion"],
+        rear_torque_share=v["rear_torque_share"],
+        engine_torque=v["engine_torque_Nm"],
+        engine_speed=v["engine_speed_rpm"],
+        shock_factor=values["loads"]["shock_factor"],
+        ratios=gears["ratios"],
+        reverse_ratio=gears["reverse"],
+        load_transfer_per_ratio=v["load_transfer_per_ratio_N"],
+        reverse_load_transfer=v["reverse_load_transfer_N"],
+        differential_locking=v["differential_locking"],
+    )
+    shape = (len(structure.vehicle_modes), -1)  # the spec keeps them flat, mode-major
+    use = [
+        jnp.reshape(jnp.asarray(modes[f"use_{c}_pct"]), shape) / 100.0
+        for c in vehicle.ENGINE_CONDITIONS
+    ]
+    use_modes = vehicle.DrivingModes(weight=modes["weight"], use=jnp.stack(use, axis=-1))
+    return vehicle.load_cycles(car, use_modes, values["life"]["required_km"], axle=structure.axle)
+
+
+def m_max(structure, values):
+    """M_max [N·m]: ``loads.M_max``, or the vehicle's largest forward working torque."""
+    if structure.m_max_from_vehicle:
+        return load_cycles(structure, values).M_max_forward
+    return values["loads"]["M_max"]
+
+
+def joint_life(structure, values, design):
+    """The [`Life`][tripodjax.life.Life] of the design under the spec's spectrum and conditions."""
+    v = values["life"]
+    if structure.spectrum_from_vehicle:
+        spectrum = vehicle.load_spectrum(load_cycles(structure, values))
+    else:
+        spectrum = life.LoadSpectrum(
+            torque=v["torque"], speed=v["speed"], vehicle_speed=v["vehicle_speed"], share=v["share"]
+        )
+    conditions = life.WorkingConditions(angle=v["condition_angle"], share=v["condition_share"])
+    return life.joint_life(
+        design["d_roller"],
+        design["R"],
+        spectrum,
+        conditions,
+        conformity=design["conformity"],
+        P_d=values["hertz"]["P_d"],
+        C_s=values["hertz"]["C_s"],
+        n_rollers=structure.n_rollers,
+        angle_law=structure.angle_law,
+    )
+
+
 def objective_and_margins(structure, values, x):
     """(objective, margins, quantities, result code) of the free-variable vector x."""
     q, code = quantities(structure, values, full_design(structure, values, x))
@@ -163,7 +203,7 @@ def objective_and_margins(structure, values, x):
     objective = sum(o[f"w_{k}"] * q[k] / o[f"{k}_ref"] for k in structure.objective)
     loads = values["loads"]
     margins = [
-        jnp.log(q["static_capacity"] / (loads["shock_factor"] * loads["M_max"])),
+        jnp.log(q["static_capacity"] / (loads["shock_factor"] * m_max(structure, values))),
         jnp.log(q["life_km"] / values["life"]["required_km"]),
     ]
     for name, k, sense in structure.constraints:
@@ -181,10 +221,12 @@ def objective_and_margins(structure, values, x):
 def limits(structure, values):
     """name → (quantity, limit, sense, unit) of each constraint, for reports."""
     loads = values["loads"]
+    with jax.enable_x64(True):  # the vehicle's M_max in float64, as the solve
+        torque = float(m_max(structure, values))
     out = {
         "static_capacity": (
             "static_capacity",
-            float(loads["shock_factor"] * loads["M_max"]),
+            float(loads["shock_factor"] * torque),
             "≥",
             "N·m",
         ),
@@ -299,8 +341,9 @@ def evaluate(spec: Spec, design: Mapping[str, float]) -> dict:
 
     Returns:
         ``{"objective": float, "constraints": {name: margin}, "quantities": {name: value},
-        "result": RESULTS name}`` — a margin ≥ 0 means satisfied (see the module
-        docstring), the bounds of the free variables included. Jit-compiled once per
+        "result": RESULTS name, "life": the life and its damage shares}`` — a margin ≥ 0
+        means satisfied (see the module docstring), the bounds of the free variables
+        included; "life" as [`life_report`][tripodjax.optimize.life_report]. Jit-compiled once per
         spec structure; runs in float64 (inside ``jax.enable_x64``, scoped to the call).
 
     Examples:
@@ -310,20 +353,13 @@ def evaluate(spec: Spec, design: Mapping[str, float]) -> dict:
         >>> round(out["quantities"]["outer_diameter"], 1)
         70.4
     """
-    structure = check_spec(spec).structure
-    design = check_design(structure, spec.values, design)
-    values = jax.tree_util.tree_map(np.asarray, spec.values)
-    for key, value in design.items():
-        if key not in structure.free:
-            section, name = VARIABLES[key][:2]
-            values[section] = dict(
-                values[section], **{name: np.asarray(from_spec_units(key, value))}
-            )
-    x = np.array([from_spec_units(k, design[k]) for k in structure.free])
+    structure = spec.structure
+    values, x = _design_values(spec, design)  # checks spec and design
     with jax.enable_x64(True):  # the design problem runs in float64; scoped to this call
         objective, margins, q, code = call(_evaluate, structure, values, jnp.asarray(x))
         objective, margins = float(objective), [float(m) for m in margins]
         q = {k: float(v) for k, v in q.items()}
+        life_shares = _life_report(structure, values, x)
     result = dict(zip(constraint_names(structure), margins, strict=True))
     lower, upper = bounds(structure, values, np)
     span = upper - lower
@@ -335,7 +371,114 @@ def evaluate(spec: Spec, design: Mapping[str, float]) -> dict:
         "constraints": result,
         "quantities": q,
         "result": RESULTS(int(np.max(code))).name,
+        "life": life_shares,
     }
+
+
+def _design_values(spec, design):
+    """The spec's values with the design's fixed variables set, and the free-variable vector."""
+    structure = check_spec(spec).structure
+    design = check_design(structure, spec.values, design)
+    values = jax.tree_util.tree_map(np.asarray, spec.values)
+    for key, value in design.items():
+        if key not in structure.free:
+            section, name = VARIABLES[key][:2]
+            values[section] = dict(
+                values[section], **{name: np.asarray(from_spec_units(key, value))}
+            )
+    return values, np.array([from_spec_units(k, design[k]) for k in structure.free])
+
+
+@functools.partial(jax.jit, static_argnums=0)
+def _life(structure, values, x):
+    result = joint_life(structure, values, full_design(structure, values, x))
+    forward = backward = jnp.nan
+    if structure.m_max_from_vehicle or structure.spectrum_from_vehicle:
+        cycles = load_cycles(structure, values)
+        forward, backward = cycles.M_max_forward, cycles.M_max_backward
+    if not structure.m_max_from_vehicle:
+        forward = values["loads"]["M_max"]
+    return result, forward, backward
+
+
+def gear_names(values):
+    """The gear labels of the spec's vehicle: "1" … "G", then "R"."""
+    return [str(i + 1) for i in range(len(values["vehicle.gears"]["ratios"]))] + ["R"]
+
+
+def _life_report(structure, values, x):
+    """The life of design x, its damage shares and M_max (the ``life`` section of the report)."""
+    result, forward, backward = _life(structure, values, jnp.asarray(x))
+    v = values["life"]
+    conditions = [
+        {
+            "name": name,
+            "angle_deg": math.degrees(float(angle)),
+            "share": float(share),
+            "life_km": float(km),
+            "damage_share": float(damage),
+        }
+        for name, angle, share, km, damage in zip(
+            structure.condition_names,
+            v["condition_angle"],
+            v["condition_share"],
+            result.km_per_condition,
+            result.damage_per_condition,
+            strict=True,
+        )
+    ]
+    damage = np.asarray(result.damage_per_case)
+    if structure.spectrum_from_vehicle:
+        gears = gear_names(values)
+        shape = (len(structure.vehicle_modes), len(gears), len(vehicle.ENGINE_CONDITIONS))
+        grid = damage[:-1].reshape(shape)  # the last case: revolutions that do no damage
+        cases = [
+            {
+                "mode": mode,
+                "gear": gear,
+                "engine_condition": condition,
+                "damage_share": float(grid[m, g, c]),
+            }
+            for m, mode in enumerate(structure.vehicle_modes)
+            for g, gear in enumerate(gears)
+            for c, condition in enumerate(vehicle.ENGINE_CONDITIONS)
+        ]
+    else:
+        cases = [
+            {
+                "mode": None,
+                "gear": None,
+                "engine_condition": None,
+                "case": i,
+                "damage_share": float(d),
+            }
+            for i, d in enumerate(damage)
+        ]
+    return {
+        "km": float(result.km),
+        "hours": float(result.hours),
+        "required_km": float(v["required_km"]),
+        "angle_law": structure.angle_law,
+        "M_max_forward_Nm": float(forward),
+        "M_max_backward_Nm": float(backward),
+        "conditions": conditions,
+        "damage_by_case": cases,
+    }
+
+
+def life_report(spec: Spec, design: Mapping[str, float]) -> dict:
+    """The ``life`` section of the report for a design (spec units, as [`evaluate`][tripodjax.optimize.evaluate]).
+
+    ``{"km", "hours", "required_km", "angle_law", "M_max_forward_Nm", "M_max_backward_Nm",
+    "conditions": [{"name", "angle_deg", "share", "life_km", "damage_share"}],
+    "damage_by_case": [{"mode", "gear", "engine_condition", "damage_share"}]}``; the damage
+    shares sum to 1 (0 everywhere for a spectrum that does no damage). With an explicit
+    spectrum the cases carry their index ``case`` and ``None`` for mode, gear and engine
+    condition; without a vehicle M_max_backward_Nm is NaN.
+    """
+    values, x = _design_values(spec, design)  # checks spec and design
+    with jax.enable_x64(True):
+        return _life_report(spec.structure, values, x)
 
 
 OWN_PROGRAM_ROWS = 128  # rows per call when the catalogue's structure is not the spec's

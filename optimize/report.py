@@ -57,7 +57,15 @@ def design_keys(design):
 
 
 def report_dict(
-    result, spec, *, pareto=(), catalogue=None, choice=None, full_fidelity=None, source="default"
+    result,
+    spec,
+    *,
+    pareto=(),
+    catalogue=None,
+    choice=None,
+    full_fidelity=None,
+    source="default",
+    life=None,
 ):
     """Everything a reader needs: design, status, constraints, sensitivities, catalogue, spec."""
     report = {
@@ -84,6 +92,8 @@ def report_dict(
     }
     if full_fidelity is not None:
         report["full_fidelity"] = full_fidelity
+    if life is not None:  # optimize.life_report of the design
+        report["life"] = life
     if result.sensitivities is not None:
         sens = result.sensitivities
         notes = {k: sens[k] for k in ("active", "on_bound", "near_switch", "condition_number")}
@@ -281,6 +291,46 @@ def figure_catalogue(result, catalogue, choice, landscape=None):
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.subplots_adjust(left=0.11, right=0.97, bottom=0.1, top=0.94)
+    return fig
+
+
+def figure_damage(life):
+    """What eats the joint: damage share by gear (stacked by mode) and by working condition.
+
+    ``life``: [`life_report`][tripodjax.optimize.life_report] of the design.
+    """
+    fig = _figure(figsize=(11, 4))
+    ax0, ax1 = fig.subplots(1, 2, gridspec_kw={"width_ratios": [3, 2]})
+    cases = life["damage_by_case"]
+    if cases and cases[0]["gear"] is not None:
+        gears = list(dict.fromkeys(c["gear"] for c in cases))
+        modes = list(dict.fromkeys(c["mode"] for c in cases))
+        bottom = np.zeros(len(gears))
+        for mode in modes:
+            share = np.array(
+                [
+                    sum(c["damage_share"] for c in cases if c["mode"] == mode and c["gear"] == g)
+                    for g in gears
+                ]
+            )
+            ax0.bar(gears, 100 * share, bottom=100 * bottom, label=mode)
+            bottom += share
+        ax0.legend(fontsize=8)
+        ax0.set(title="damage by gear and driving mode", xlabel="gear")
+    else:
+        ax0.bar([str(c["case"]) for c in cases], [100 * c["damage_share"] for c in cases])
+        ax0.set(title="damage by spectrum case", xlabel="case")
+    ax0.set(ylabel="share of the damage [%]")
+    names = [c["name"] for c in life["conditions"]]
+    ax1.bar(names, [100 * c["damage_share"] for c in life["conditions"]], color="C3")
+    ax1.set(
+        title=f"damage by working condition (life {life['km']:,.0f} km)",
+        ylabel="share of the damage [%]",
+    )
+    ax1.tick_params(axis="x", labelrotation=30, labelsize=8)
+    for ax in (ax0, ax1):
+        ax.grid(alpha=0.3, axis="y")
+    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.22, top=0.9, wspace=0.25)
     return fig
 
 

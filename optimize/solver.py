@@ -495,7 +495,7 @@ def solve(spec: Spec, progress: bool | ProgressMeter | None = None) -> Result:
         >>> from tripodjax import optimize
         >>> result = optimize.solve(optimize.load_spec(), progress=False)
         >>> round(result.design["R"], 1), round(result.design["d_roller"], 1), result.converged
-        (21.3, 27.8, True)
+        (26.1, 41.4, True)
     """
     return run(spec, [spec.values], progress)[0]
 

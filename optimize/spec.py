@@ -23,13 +23,15 @@ import numpy as np
 
 from tripodjax._checks import MAX_GAMMA0, check_layout_domain, real_scalar
 from tripodjax.hertz import MIN_CONFORMITY
+from tripodjax.life import ANGLE_LAWS, read_spectrum_rows
+from tripodjax.vehicle import AXLES, ENGINE_CONDITIONS
 
 MAX_GAMMA0_DEG = math.degrees(MAX_GAMMA0)
 MAX_FLOAT = sys.float_info.max
 
 DEFAULT_SPEC_TOML = """\
-# The company validation workbook's tripod (seed §4.3) on the seed's nominal halfshaft,
-# case N of Table 2.1 (§2.10). Units in the key names and comments.
+# The company validation workbook's tripod (seed §4.3), its vehicle and working conditions, on the
+# seed's nominal halfshaft, case N of Table 2.1 (§2.10). Units in the key names and comments.
 
 [design]
 # Values of the joint-size variables when they are not free (see [bounds]): the workbook's joint.
@@ -41,8 +43,9 @@ l = 500.0              # shaft length, spider centre to the fixed joint's pivot 
 gamma0_deg = 20.0      # layout articulation angle [deg]
 
 [loads]
-M_max = 1154.0         # maximum forward torque [N·m] (workbook)
-shock_factor = 1.1     # static check at shock_factor · M_max (workbook; seed Table 4.1)
+# M_max, the largest forward torque on the shaft, comes from [vehicle] (its adhesion-limited
+# first-gear torque, 1154 N·m here); give loads.M_max [N·m] instead to set it yourself.
+shock_factor = 1.1     # shock factor: in the vehicle's torques, and the static check at shock_factor · M_max
 gaf_torque = 1000.0    # torque at which GAF is judged [N·m] (the seed's GAF example, §3.2)
 
 [hertz]
@@ -53,22 +56,55 @@ C_s = 1.2              # safety coefficient on the pressure (workbook)
 conformity = 1.002     # Ψ = 2 R_groove / d (workbook range 1.002–1.008)
 n_rollers = 3
 
+[vehicle]
+# The company workbook's vehicle (seed figs. 4.3.1, 4.3.3, 4.3.4): a rear-wheel-drive sportscar.
+# It gives M_max and the life's load spectrum (tripodjax.vehicle); replace it with the
+# customer's, or give loads.M_max and the [life] lists (or life.spectrum_file) instead.
+axle = "rear"                  # the halfshaft studied: "rear" or "front"
+mass_kg = 937.0                # gross vehicle mass
+front_share = 0.328            # share of the mass on the front axle (307.34 of 937 kg)
+wheelbase_m = 2.475
+cg_height_m = 0.42             # centre-of-gravity height
+tyre_radius_m = 0.30773        # static loaded radius (printed 0.308; the sheet's cycle count implies 0.30773)
+adhesion = 0.9                 # tyre–road friction coefficient
+rear_torque_share = 1.0        # engine torque to the rear axle: 1 rear-, 0 front-wheel drive, between AWD
+differential_locking = 1.0     # one shaft takes at most (1 + this)/2 of its axle's torque (workbook 100 %)
+# Engine torque and speed at mean torque, maximum torque, maximum power, and the engine brake.
+engine_torque_Nm = [555.0, 555.0, 517.4, 50.0]
+engine_speed_rpm = [3000.0, 3000.0, 5500.0, 3000.0]
+load_transfer_per_ratio_N = 67.45  # wheel-load transfer per unit overall ratio (fitted to the sheet)
+reverse_load_transfer_N = 627.0    # wheel-load transfer in reverse (the sheet)
+
+[vehicle.gears]
+ratios = [13.128, 7.931, 5.367, 4.181, 3.336, 2.788]  # overall ratios (gear × final drive), up to 11
+reverse = 13.584
+
+[vehicle.modes]
+# Driving modes: names, share of the mileage, and the relative use of each gear (1st…, reverse
+# last) at each engine condition as % of that mode's revolutions (fig. 4.3.11): one list for
+# every mode, or a list of lists (one per mode).
+names = ["sport", "intercity", "city"]
+weight = [0.5, 0.1, 0.4]
+use_T_mean_pct = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+use_T_max_pct = [1.62, 4.55, 11.00, 11.93, 9.60, 7.04, 0.40]
+use_P_max_pct = [0.14, 1.23, 4.50, 7.29, 7.20, 6.53, 0.05]
+use_brake_pct = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+
 [life]
 required_km = 100000.0 # required life [km] (workbook)
-# Load spectrum: each case's joint torque [N·m], joint speed [rpm], vehicle speed [km/h] and
-# share of the running time. An illustrative passenger-car spectrum with the workbook's
-# M_max as its first-gear peak; replace it with the vehicle's own.
-torque = [1154.0, 700.0, 350.0, 150.0]
-speed = [230.0, 400.0, 700.0, 1000.0]
-vehicle_speed = [28.0, 50.0, 90.0, 130.0]
-share = [0.02, 0.18, 0.45, 0.35]
+angle_law = "workbook" # life against working angle: "workbook" (fitted to fig. 4.3.10) or "seed"
+# The load spectrum comes from [vehicle]. To give it yourself: torque [N·m], speed [rpm],
+# vehicle_speed [km/h] and share (of the running time) lists, or spectrum_file = "x.csv"
+# (columns torque_Nm, speed_rpm, vehicle_speed_kmh and revolutions or hours; relative to
+# the spec's folder).
 
 [life.conditions]
-# Working conditions: main articulation, straight running and suspension shock, with the
-# workbook's angles (6.5°, 0°, 12.8°) and shares of the mileage.
-names = ["main", "straight", "shock"]
-angle_deg = [6.5, 0.0, 12.8]
-share = [0.45, 0.20, 0.35]
+# The workbook's five working conditions (fig. 4.3.10): angles and shares of the mileage,
+# combined by Miner's rule. Shock + is unreadable in the sheet; 8.0° is what its "P" entry
+# (58 %) implies under the workbook law.
+names = ["static trim", "steering +", "steering -", "shock +", "shock -"]
+angle_deg = [6.5, 0.0, 0.0, 8.0, 12.8]
+share = [0.30, 0.0, 0.0, 0.35, 0.35]
 
 [friction]
 grease = "A"           # "A" (μ_slp 0.06), "B" (0.09) or "dry" (0.30) (seed §3.2.3)
@@ -176,6 +212,24 @@ LEGACY_OBJECTIVE = {
 }
 
 
+LIFE_LISTS = ("torque", "speed", "vehicle_speed", "share")
+# Keys the default leaves out: giving one replaces what [vehicle] would give.
+OPTIONAL_KEYS = {"loads.M_max", "life.spectrum_file", *(f"life.{k}" for k in LIFE_LISTS)}
+VEHICLE_NUMBERS = {  # key → (low, high, low open, unit)
+    "mass_kg": (0.0, None, True, " kg"),
+    "front_share": (0.0, 1.0, False, ""),
+    "wheelbase_m": (0.0, None, True, " m"),
+    "cg_height_m": (0.0, None, False, " m"),
+    "tyre_radius_m": (0.0, None, True, " m"),
+    "adhesion": (0.0, None, True, ""),
+    "rear_torque_share": (0.0, 1.0, False, ""),
+    "differential_locking": (0.0, 1.0, False, ""),
+    "load_transfer_per_ratio_N": (0.0, None, False, " N"),
+    "reverse_load_transfer_N": (0.0, None, False, " N"),
+}
+MAX_GEARS = 11
+
+
 class SpecError(ValueError):
     """A problem in a design specification: the message names the key and what is allowed."""
 
@@ -192,6 +246,11 @@ class Structure:
     constraints: tuple  # (name, quantity, sense) with sense "max" or "min"
     condition_names: tuple
     n_rollers: int
+    angle_law: str
+    vehicle_modes: tuple  # mode names; () when no vehicle is used
+    axle: str
+    m_max_from_vehicle: bool
+    spectrum_from_vehicle: bool
     gaf_model: str
     fidelity: str
     n_theta: int
@@ -241,7 +300,8 @@ class Spec:
         through the same rules. Sections are any mappings; a number is any real scalar (Python,
         NumPy, a 0-d JAX array), a list any sequence or 1-D array of them.
         """
-        return _check(_merge(self.resolved, _legacy(_plain(sections))))
+        given = _sources(_legacy(_plain(sections)), None)
+        return _check(_merge(self.resolved, given))
 
 
 jax.tree_util.register_pytree_node(Spec, _flatten_spec, _unflatten_spec)
@@ -366,7 +426,11 @@ def _merge(default, override, path=()):
     for key, value in override.items():
         where = ".".join(path + (key,))
         section = path[0] if path else None
-        if key not in default and section not in ("objective", "constraints", "bounds", "friction"):
+        if (
+            key not in default
+            and section not in ("objective", "constraints", "bounds", "friction")
+            and where not in OPTIONAL_KEYS
+        ):
             raise SpecError(f"unknown key {where}; allowed here: {', '.join(sorted(default))}")
         if isinstance(default.get(key), dict):
             if not isinstance(value, Mapping):
@@ -490,6 +554,169 @@ def _bounds(table, fixed):
     return bounds
 
 
+def _spectrum(table):
+    """The explicit load spectrum: the [life] lists or life.spectrum_file, checked."""
+    life = table["life"]
+    given = [k for k in LIFE_LISTS if k in life]
+    if "spectrum_file" in life:
+        path = life["spectrum_file"]
+        if not isinstance(path, str):
+            raise SpecError(f"life.spectrum_file = {path!r} must be a path (a string)")
+        try:
+            spectrum = read_spectrum_rows(path)
+        except ValueError as error:
+            raise SpecError(f"life.spectrum_file: {error}") from None
+        where = "life.spectrum_file"
+    else:
+        missing = [k for k in LIFE_LISTS if k not in life]
+        if missing:
+            raise SpecError(
+                f"life.{given[0]} is given without life.{missing[0]}: an explicit spectrum needs "
+                "torque, speed, vehicle_speed and share"
+            )
+        units = {"torque": " N·m", "speed": " rpm", "vehicle_speed": " km/h", "share": ""}
+        spectrum = {k: _numbers(table, "life", k, 0.0, unit=u) for k, u in units.items()}
+        lengths = {k: len(x) for k, x in spectrum.items()}
+        if len(set(lengths.values())) != 1:
+            raise SpecError(
+                f"life lists have lengths {lengths}; torque, speed, vehicle_speed and share must have one length"
+            )
+        _shares("life.share", spectrum["share"])
+        where = "life spectrum"
+    if len(spectrum["torque"]) > MAX_LIST_LENGTH:
+        raise SpecError(
+            f"{where} has {len(spectrum['torque'])} levels; at most {MAX_LIST_LENGTH} allowed"
+        )
+    cases = list(zip(spectrum["share"], spectrum["speed"], spectrum["torque"], strict=True))
+    if not any(a > 0 and n > 0 and t > 0 for a, n, t in cases):
+        raise SpecError(
+            f"{where} has no case with torque, speed and share > 0: the life would be infinite"
+        )
+    if not any(
+        a > 0 and v > 0 for a, v in zip(spectrum["share"], spectrum["vehicle_speed"], strict=True)
+    ):
+        raise SpecError(
+            f"{where} has vehicle speed 0 in every case with a share > 0: the life in km would be 0"
+        )
+    return spectrum
+
+
+def _vehicle(table):
+    """The [vehicle] section as spec-number sections, the mode names and the axle."""
+    gears, modes = table["vehicle"]["gears"], table["vehicle"]["modes"]
+    axle = _string(table, "vehicle", "axle", AXLES)
+    numbers = {}
+    for key, (low, high, low_open, unit) in VEHICLE_NUMBERS.items():
+        numbers[key] = _number(table, "vehicle", key, low, high, low_open=low_open, unit=unit)
+    for key, low_open, unit in (
+        ("engine_torque_Nm", False, " N·m"),
+        ("engine_speed_rpm", True, " rpm"),
+    ):
+        entries = _numbers(table, "vehicle", key, 0.0, low_open=low_open, unit=unit)
+        if len(entries) != len(ENGINE_CONDITIONS):
+            raise SpecError(
+                f"vehicle.{key} has {len(entries)} entries; allowed: 4, at mean torque, maximum "
+                "torque, maximum power and the engine brake"
+            )
+        numbers[key] = np.asarray(entries)
+    ratios = _numbers(table, "vehicle.gears", "ratios", 0.0, low_open=True)
+    if len(ratios) > MAX_GEARS:
+        raise SpecError(
+            f"vehicle.gears.ratios has {len(ratios)} gears; at most {MAX_GEARS} allowed"
+        )
+    reverse = _number({"vehicle.gears": gears}, "vehicle.gears", "reverse", 0.0, low_open=True)
+    names = modes.get("names")
+    if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
+        raise SpecError(f"vehicle.modes.names = {names!r} must be a non-empty list of strings")
+    if len(set(names)) != len(names):
+        raise SpecError(f"vehicle.modes.names = {names!r} must not repeat a name")
+    weight = _numbers(table, "vehicle.modes", "weight", 0.0)
+    if len(weight) != len(names):
+        raise SpecError(
+            f"vehicle.modes.weight has {len(weight)} entries and names {len(names)}; they must agree"
+        )
+    _shares("vehicle.modes.weight", weight)
+    use = {}
+    for condition in ENGINE_CONDITIONS:
+        key = f"use_{condition}_pct"
+        where = f"vehicle.modes.{key}"
+        value = modes.get(key)
+        rows = value if isinstance(value, list) and value and isinstance(value[0], list) else None
+        if rows is None:
+            rows = [_numbers(table, "vehicle.modes", key, 0.0, 100.0, unit=" %")] * len(names)
+        else:
+            if len(rows) != len(names):
+                raise SpecError(
+                    f"{where} has {len(rows)} rows and vehicle.modes.names {len(names)}; one row per mode"
+                )
+            rows = [
+                _numbers(
+                    {"vehicle": {"modes": {f"{key}[{i}]": row}}},
+                    "vehicle.modes",
+                    f"{key}[{i}]",
+                    0.0,
+                    100.0,
+                    unit=" %",
+                )
+                for i, row in enumerate(rows)
+            ]
+        for row in rows:
+            if len(row) != len(ratios) + 1:
+                raise SpecError(
+                    f"{where} has {len(row)} entries; allowed: {len(ratios) + 1}, one per gear of "
+                    "vehicle.gears.ratios and reverse last"
+                )
+        use[key] = np.asarray(rows).ravel()  # 1-D leaves: mode-major (mode, gear)
+    total = sum(use.values()).reshape(len(names), -1)
+    for i, name in enumerate(names):
+        if np.sum(total[i]) > 100.0 + 1e-9:
+            raise SpecError(
+                f"vehicle.modes use_*_pct of mode {name!r} sum to {np.sum(total[i]):g} %; at most 100 % "
+                "of its revolutions"
+            )
+    share = numbers["rear_torque_share"] if axle == "rear" else 1.0 - numbers["rear_torque_share"]
+    if share == 0:
+        raise SpecError(
+            f"vehicle.axle = {axle!r} with vehicle.rear_torque_share = "
+            f"{numbers['rear_torque_share']:g}: that axle's shafts carry no torque"
+        )
+    if not np.any(total * np.asarray(weight)[:, None] > 0) or not any(
+        t > 0 for t in numbers["engine_torque_Nm"]
+    ):
+        raise SpecError(
+            "vehicle.modes use_*_pct (weighted by vehicle.modes.weight) or vehicle.engine_torque_Nm "
+            "are all 0: no load cycle, the life would be infinite"
+        )
+    sections = {
+        "vehicle": numbers,
+        "vehicle.gears": {"ratios": np.asarray(ratios), "reverse": reverse},
+        "vehicle.modes": {"weight": np.asarray(weight), **use},
+    }
+    return sections, tuple(names), axle
+
+
+def _sources(given, base):
+    """One source for M_max and one for the spectrum; a file's spectrum_file made absolute."""
+    loads, life = given.get("loads"), given.get("life")
+    loads, life = (x if isinstance(x, dict) else {} for x in (loads, life))
+    lists = [f"life.{k}" for k in LIFE_LISTS if k in life]
+    if "spectrum_file" in life:
+        lists.insert(0, "life.spectrum_file")
+    if "vehicle" in given and "M_max" in loads:
+        raise SpecError(
+            "loads.M_max and [vehicle] both give M_max; give one (without loads.M_max it is the "
+            "vehicle's adhesion-limited torque)"
+        )
+    if "vehicle" in given and lists:
+        raise SpecError(f"{lists[0]} and [vehicle] both give the load spectrum; give one")
+    if "spectrum_file" in life and len(lists) > 1:
+        raise SpecError(f"life.spectrum_file and {lists[1]} both give the load spectrum; give one")
+    path = life.get("spectrum_file")
+    if isinstance(path, str) and base is not None and not os.path.isabs(path):
+        life["spectrum_file"] = os.path.join(base, path)
+    return given
+
+
 def _check(table):
     """Check a merged table; returns the Spec."""
     v = {}
@@ -503,10 +730,12 @@ def _check(table):
     v["design"] = {"R": fixed["R"], "d_roller": fixed["d_roller"]}
     v["layout"] = {"l": fixed["l"], "gamma0": math.radians(fixed["gamma0_deg"])}
     v["loads"] = {
-        "M_max": _number(table, "loads", "M_max", 0.0, low_open=True, unit=" N·m"),
         "shock_factor": _number(table, "loads", "shock_factor", 0.0, low_open=True),
         "gaf_torque": _number(table, "loads", "gaf_torque", 0.0, unit=" N·m"),
     }
+    m_max_from_vehicle = "M_max" not in table["loads"]
+    if not m_max_from_vehicle:
+        v["loads"]["M_max"] = _number(table, "loads", "M_max", 0.0, low_open=True, unit=" N·m")
     hertz = {
         k: _number(table, "hertz", k, 0.0, low_open=True, unit=" MPa")
         for k in ("P_s", "P_d", "P_sd")
@@ -520,21 +749,10 @@ def _check(table):
         )
     v["hertz"] = hertz
     life = {"required_km": _number(table, "life", "required_km", 0.0, low_open=True, unit=" km")}
-    units = {"torque": " N·m", "speed": " rpm", "vehicle_speed": " km/h", "share": ""}
-    spectrum = {k: _numbers(table, "life", k, 0.0, unit=u) for k, u in units.items()}
-    lengths = {k: len(x) for k, x in spectrum.items()}
-    if len(set(lengths.values())) != 1:
-        raise SpecError(
-            f"life lists have lengths {lengths}; torque, speed, vehicle_speed and share must have one length"
-        )
-    _shares("life.share", spectrum["share"])
-    if not any(
-        s > 0 and n > 0 and t > 0
-        for s, n, t in zip(spectrum["share"], spectrum["speed"], spectrum["torque"], strict=True)
-    ):
-        raise SpecError(
-            "life spectrum has no case with torque, speed and share > 0: the life would be infinite"
-        )
+    angle_law = _string(table, "life", "angle_law", ANGLE_LAWS)
+    spectrum_from_vehicle = not any(k in table["life"] for k in (*LIFE_LISTS, "spectrum_file"))
+    if not spectrum_from_vehicle:
+        life.update({k: np.asarray(x) for k, x in _spectrum(table).items()})
     conditions = table["life"]["conditions"]
     angles = _numbers(table, "life.conditions", "angle_deg", 0.0, 89.999, unit="°")
     shares = _numbers(table, "life.conditions", "share", 0.0)
@@ -547,10 +765,13 @@ def _check(table):
             f"life.conditions lists have lengths angle_deg {len(angles)}, share {len(shares)}, "
             f"names {len(names)}; they must have one length"
         )
-    life.update({k: np.asarray(x) for k, x in spectrum.items()})
     life["condition_angle"] = np.radians(np.asarray(angles))
     life["condition_share"] = np.asarray(shares)
     v["life"] = life
+    modes, axle = (), "rear"
+    if m_max_from_vehicle or spectrum_from_vehicle:
+        vehicle, modes, axle = _vehicle(table)
+        v.update(vehicle)
     grease = _string(table, "friction", "grease", tuple(GREASE_MU_SLP))
     for key in table["friction"]:
         if key not in ("grease", "lam", "gaf_model", "mu_slp"):
@@ -566,6 +787,12 @@ def _check(table):
     gaf_model = _string(table, "friction", "gaf_model", GAF_MODELS)
     terms, v["objective"] = _objective(table)
     constraints, v["constraints"] = _constraints(table)
+    max_life = v["constraints"].get("max_life_km")
+    if max_life is not None and max_life < v["life"]["required_km"]:
+        raise SpecError(
+            f"constraints.max_life_km = {max_life:g} is below life.required_km = "
+            f"{v['life']['required_km']:g}: no design can meet both"
+        )
     bounds = _bounds(table, fixed)
     v["bounds"] = {
         k: (math.radians(lo), math.radians(hi)) if k == "gamma0_deg" else (lo, hi)
@@ -585,6 +812,11 @@ def _check(table):
         constraints=constraints,
         condition_names=tuple(names),
         n_rollers=n_rollers,
+        angle_law=angle_law,
+        vehicle_modes=modes,
+        axle=axle,
+        m_max_from_vehicle=m_max_from_vehicle,
+        spectrum_from_vehicle=spectrum_from_vehicle,
         gaf_model=gaf_model,
         fidelity=_string(table, "solver", "fidelity", FIDELITIES),
         **sizes,
@@ -597,11 +829,14 @@ def _check(table):
     return Spec(structure=structure, values=values, resolved=table)
 
 
-def parse_spec(text: str, source: str = "spec") -> Spec:
+def parse_spec(text: str, source: str = "spec", base: str | os.PathLike | None = None) -> Spec:
     """Check a TOML text (merged over the default: a file need only hold what it changes).
 
-    Raises ``TypeError`` unless ``text`` is a ``str`` (bytes: decode them, or use
-    [`load_spec`][tripodjax.optimize.load_spec] on the file) and ``source`` a ``str``.
+    ``base``: the folder that a relative ``life.spectrum_file`` is read from (the
+    spec file's folder in [`load_spec`][tripodjax.optimize.load_spec]; the current
+    directory when None). Raises ``TypeError`` unless ``text`` is a ``str`` (bytes: decode
+    them, or use [`load_spec`][tripodjax.optimize.load_spec] on the file) and ``source`` a
+    ``str``.
     """
     if not isinstance(text, str):
         hint = " (decode bytes first: text.decode('utf-8'))" if isinstance(text, bytes) else ""
@@ -619,7 +854,7 @@ def parse_spec(text: str, source: str = "spec") -> Spec:
         raise SpecError(f"{source} is not valid TOML: {error}") from None
     except ValueError as error:  # e.g. an integer of more than 4300 digits
         raise SpecError(f"{source} is not valid TOML: {error}") from None
-    return _check(_merge(tomllib.loads(DEFAULT_SPEC_TOML), _legacy(given)))
+    return _check(_merge(tomllib.loads(DEFAULT_SPEC_TOML), _sources(_legacy(given), base)))
 
 
 def load_spec(path: str | os.PathLike | None = None) -> Spec:
@@ -647,4 +882,4 @@ def load_spec(path: str | os.PathLike | None = None) -> Spec:
             f"spec file {path} is not UTF-8 text (byte {error.start}: {data[error.start : error.start + 1]!r}); "
             "save it as UTF-8"
         ) from None
-    return parse_spec(text, str(path))
+    return parse_spec(text, str(path), os.path.dirname(os.path.abspath(path)))

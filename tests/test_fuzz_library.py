@@ -25,7 +25,7 @@ from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
 import tripodjax as tj
-from tripodjax import catalogue, friction, hertz
+from tripodjax import catalogue, friction, hertz, life
 
 FUZZ = settings(
     max_examples=25,
@@ -211,12 +211,12 @@ def _spectrum(**changes):
         vehicle_speed=np.array([40.0, 90.0, 130.0]),
         share=np.array([0.1, 0.5, 0.4]),
     )
-    return hertz.LoadSpectrum(**{**fields, **changes})
+    return life.LoadSpectrum(**{**fields, **changes})
 
 
 def _conditions(**changes):
     fields = dict(angle=np.radians([6.5, 0.0, 12.8]), share=np.array([0.45, 0.2, 0.35]))
-    return hertz.WorkingConditions(**{**fields, **changes})
+    return life.WorkingConditions(**{**fields, **changes})
 
 
 def _layout():
@@ -325,13 +325,13 @@ BOUNDARY = {
         },
         "{}",
     ),
-    "hertz.life_hours": (
-        hertz.life_hours,
+    "life.life_hours": (
+        life.life_hours,
         dict(M_d=1505.0, torque=[900.0, 400.0], speed=[300.0, 800.0], share=[0.5, 0.5]),
         {"M_d": "positive", "torque": "non_negative", "speed": "non_negative", "share": "shares"},
         "{}",
     ),
-    "hertz.LoadSpectrum": (
+    "life.LoadSpectrum": (
         _spectrum,
         {},
         {
@@ -342,14 +342,14 @@ BOUNDARY = {
         },
         "LoadSpectrum.{}",
     ),
-    "hertz.WorkingConditions": (
+    "life.WorkingConditions": (
         _conditions,
         {},
         {"angle": "working_angle", "share": "shares"},
         "WorkingConditions.{}",
     ),
-    "hertz.joint_life": (
-        hertz.joint_life,
+    "life.joint_life": (
+        life.joint_life,
         dict(d=43.5, R=25.55, conformity=1.002, P_d=1347.0, C_s=1.2, **ANGLES),
         {
             "d": "positive",
@@ -644,14 +644,14 @@ def _hertz_all(d, R, conformity, P_s, P_d, C_s, gamma, cos_tau, m, load, torque0
     contact = hertz.roller_contact(load, d, conformity=conformity)
     coefficients = hertz.hertz_coefficients(cos_tau)
     K, E = hertz.elliptic_integrals(m)
-    spectrum = hertz.LoadSpectrum(
+    spectrum = life.LoadSpectrum(
         torque=jnp.stack([torque0, 400.0]),
         speed=jnp.array([300.0, 800.0]),
         vehicle_speed=jnp.array([40.0, 90.0]),
         share=jnp.stack([share0, 1.0 - share0]),
     )
-    conditions = hertz.WorkingConditions(angle=jnp.stack([gamma, 0.0]), share=jnp.array([0.5, 0.5]))
-    life = hertz.joint_life(d, R, spectrum, conditions, conformity=conformity, P_d=P_d, C_s=C_s)
+    conditions = life.WorkingConditions(angle=jnp.stack([gamma, 0.0]), share=jnp.array([0.5, 0.5]))
+    joint = life.joint_life(d, R, spectrum, conditions, conformity=conformity, P_d=P_d, C_s=C_s)
     d_min, _ = hertz.min_roller_diameter(
         1154.0 * P_s / 2350.0, R_over_d=R / d, conformity=conformity, P_s=P_s, C_s=C_s
     )
@@ -661,11 +661,11 @@ def _hertz_all(d, R, conformity, P_s, P_d, C_s, gamma, cos_tau, m, load, torque0
         coefficients=coefficients,
         K=K,
         E=E,
-        life=life,
+        life=joint,
         d_min=d_min,
         mu_nu=hertz.mu_nu(cos_tau),
         C_p=hertz.conformity_coefficient(conformity),
-        hours=hertz.life_hours(P_d, torque0, 730.0, 1.0),
+        hours=life.life_hours(P_d, torque0, 730.0, 1.0),
     )
 
 

@@ -10,6 +10,7 @@ import tempfile
 import time
 
 import pytest
+from reference import reference_default_design
 
 from tripodjax import optimize
 
@@ -63,16 +64,32 @@ def test_cli_default_exits_0_and_writes_a_strict_report(cli_run):
     report = strict_json(out / "report.json")
     assert report["converged"] and report["kkt_residual"] <= report["tolerance"]
     assert set(report["status"]) >= {"kkt_converged", "halfshaft_converged", "hertz_converged"}
-    assert report["design"]["R_mm"] == pytest.approx(21.30, rel=2e-3)
-    assert report["design"]["d_roller_mm"] == pytest.approx(27.78, rel=2e-3)
+    R, d = reference_default_design()  # the workbook's chain, independently (test_optimize.py)
+    assert report["design"]["R_mm"] == pytest.approx(R, rel=2e-3)
+    assert report["design"]["d_roller_mm"] == pytest.approx(d, rel=2e-3)
     assert "catalogue:" in result.stdout and "ad hoc:" in result.stdout
-    choice = report["catalogue_choice"]
-    assert choice["feasible"] and choice == min(
-        (e for e in report["catalogue"] if e["feasible"]), key=lambda e: e["objective"]
+    # No catalogue size lives 100 000 km in the workbook's vehicle (test_optimize.py).
+    assert report["catalogue_choice"] is None and not any(
+        e["feasible"] for e in report["catalogue"]
     )
-    assert (
-        "loads.M_max" in report["sensitivities"] and "layout.gamma0_deg" in report["sensitivities"]
-    )
+    assert "catalogue: none feasible" in result.stdout
+    assert "layout.gamma0_deg" in report["sensitivities"]
+    for key in ("vehicle.tyre_radius_m", "vehicle.adhesion"):
+        assert report["sensitivities"][key]["d_roller"] != 0, key
+    life = report["life"]
+    assert life["M_max_forward_Nm"] == pytest.approx(1154.0, rel=5e-3)
+    assert life["M_max_backward_Nm"] == pytest.approx(750.0, rel=5e-3)
+    assert life["km"] == pytest.approx(100_000.0, rel=1e-3)  # active
+    assert [c["name"] for c in life["conditions"]] == [
+        "static trim",
+        "steering +",
+        "steering -",
+        "shock +",
+        "shock -",
+    ]
+    assert sum(c["damage_share"] for c in life["conditions"]) == pytest.approx(1.0)
+    assert sum(c["damage_share"] for c in life["damage_by_case"]) == pytest.approx(1.0)
+    assert "damage.png" in os.listdir(out)
     # The cheap default (n_theta 120) is re-checked at full fidelity.
     assert report["full_fidelity"]["n_theta"] == 360
     assert min(report["full_fidelity"]["constraints"].values()) > -1e-4
@@ -92,7 +109,13 @@ def test_cli_design_is_feasible_under_evaluate(cli_run):
     [
         ("[hertz]\nconformity = 0.9\n", "hertz.conformity"),
         ("[bounds]\nd_roller = [20.0, inf]\n", "bounds.d_roller[1] = inf"),
-        ("[life]\ntorque = [1154.0, 700.0, inf, 150.0]\n", "life.torque[2] = inf"),
+        (
+            "[life]\ntorque = [1154.0, inf]\nspeed = [1.0, 1.0]\nvehicle_speed = [1.0, 1.0]\n"
+            "share = [0.5, 0.5]\n",
+            "life.torque[1] = inf",
+        ),
+        ("[loads]\nM_max = 1.0\n[vehicle]\nadhesion = 1.0\n", "loads.M_max and [vehicle]"),
+        ("[constraints]\nmax_life_km = 1.0\n", "below life.required_km"),
         ("[solver]\nn_theta = 9999996\n", "solver.n_theta"),
         ("[life.conditions]\nnames = 5\n", "life.conditions.names"),
     ],

@@ -10,7 +10,9 @@ only at the user-facing edge). Physics layers, after the seed thesis:
 - [`tripodjax.motion`][tripodjax.motion]: velocities and accelerations, exact and first order (§2.11).
 - [`tripodjax.sweep`][tripodjax.sweep]: batch sweeps over layouts, chunked and sharded.
 - [`tripodjax.friction`][tripodjax.friction]: friction and the generated axial force, GAF (§3.2).
-- [`tripodjax.hertz`][tripodjax.hertz]: Hertz contact, torque capacities, minimum size, life (§4.2).
+- [`tripodjax.hertz`][tripodjax.hertz]: Hertz contact, torque capacities, minimum size (§4.2).
+- [`tripodjax.life`][tripodjax.life]: load spectrum, working conditions, angle derating, Miner's rule (§4.2).
+- [`tripodjax.vehicle`][tripodjax.vehicle]: the customer's vehicle → the joint's load cycles (§4.3).
 - [`tripodjax.catalogue`][tripodjax.catalogue]: GE and GI catalogue sizes (§1.1.2).
 - [`tripodjax.solvers`][tripodjax.solvers]: solver options (`Newton`, `Analytic`, `ClosedForm`).
 - [`tripodjax.results`][tripodjax.results]: the `RESULTS` codes carried from the Newton point to every result.
@@ -55,14 +57,16 @@ _SUBMODULES = (
     "joint",
     "kinematics",
     "layout",
+    "life",
     "motion",
     "progress",
     "results",
     "solvers",
+    "vehicle",
 )
 
 if typing.TYPE_CHECKING:  # what the lazy attributes are, for type checkers and the docs
-    from tripodjax import catalogue, friction, hertz, joint, progress, solvers
+    from tripodjax import catalogue, friction, hertz, joint, life, progress, solvers, vehicle
     from tripodjax.halfshaft import HalfshaftSolution, solve_halfshaft
     from tripodjax.kinematics import KinematicMetrics, kinematic_metrics
     from tripodjax.layout import TABLE_2_1, Layout, seed_case
@@ -135,8 +139,10 @@ __all__ = [
     "halfshaft_motion",
     "hertz",
     "joint",
+    "life",
     "kinematic_metrics",
     "seed_case",
     "solve_halfshaft",
     "sweep",
+    "vehicle",
 ]

@@ -1,4 +1,6 @@
-"""Hertz contact of roller on track, joint capacities, minimum size and life (seed §4.2).
+"""Hertz contact of roller on track, joint capacities and minimum size (seed §4.2).
+
+The life under a load spectrum is in [`tripodjax.life`][tripodjax.life].
 
 Roller of diameter d in a track of groove radius R_g, conformity Ψ = 2 R_g / d.
 The seed reads the Hertz product μν from a book table; here it follows from
@@ -30,20 +32,16 @@ import math
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 from jax.typing import ArrayLike
 
 from tripodjax._checks import (
     MIN_CONFORMITY,  # re-exported: hertz.MIN_CONFORMITY
-    check,
     check_choice,
     check_conformity,
     check_integer,
     check_non_negative,
     check_positive,
     check_range,
-    check_shares,
-    checked_pytree_dataclass,
 )
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.results import RESULTS, code_where, worst
@@ -54,17 +52,12 @@ __all__ = [
     "Contact",
     "ContactGeometry",
     "HertzCoefficients",
-    "Life",
-    "LoadSpectrum",
     "RESULTS",
-    "WorkingConditions",
     "capacities",
     "conformity_coefficient",
     "contact_geometry",
     "elliptic_integrals",
     "hertz_coefficients",
-    "joint_life",
-    "life_hours",
     "min_roller_diameter",
     "mu_nu",
     "roller_contact",
@@ -556,197 +549,3 @@ def min_roller_diameter(
     ok = _finite(M_max, R_over_d, P_s, C_s, C_p, n_rollers, pressure_angle, helix_angle, d3)
     d_min = _nan_unless(ok, jnp.cbrt(d3))
     return d_min, d_min * R_over_d  # (R/d)·d_min
-
-
-# --------------------------------------------------------------------------- life (Palmgren–Miner)
-
-RATING_HOURS_RPM = 365_000.0  # 500 h at 730 rpm at M = M_d, the catalogues' rating (4.2.2)
-
-
-def _life_hours(M_d, torque, speed, share):
-    M_d = jnp.asarray(M_d)[..., None]
-    torque, speed, share = (
-        jnp.atleast_1d(jnp.asarray(x, M_d.dtype)) for x in (torque, speed, share)
-    )
-    damage_rate = share * speed * (torque / M_d) ** 3 / RATING_HOURS_RPM
-    ok = jnp.all(_finite(M_d, torque, speed, share), axis=-1)
-    return _nan_unless(ok, 1.0 / jnp.sum(damage_rate, axis=-1))
-
-
-def life_hours(M_d: ArrayLike, torque: ArrayLike, speed: ArrayLike, share: ArrayLike) -> jax.Array:
-    """Palmgren–Miner life in hours over a load spectrum (4.2.1, 4.2.2).
-
-    L_h,i = (365000 / n_i) (M_d / M_i)³ and 1/L_h = Σ a_i / L_h,i, over the
-    last axis of ``torque`` [N·m], ``speed`` n [rpm] and ``share`` a [–];
-    ``M_d`` [N·m] may carry leading axes (one life per entry). A case with zero
-    torque or speed does no damage (a spectrum that does none lives for ever:
-    ``inf``). M_d > 0, torque ≥ 0, speed ≥ 0, shares ≥ 0 summing to 1, all
-    finite; inside ``jit`` a non-finite input gives NaN.
-    """
-    check_positive(M_d=M_d)
-    check_non_negative("torque", torque, " N·m")
-    check_non_negative("speed", speed, " rpm")
-    check_shares("share", share)
-    return _life_hours(M_d, torque, speed, share)
-
-
-def _check_one_shape(owner, fields):
-    shapes = {name: np.shape(value) for name, value in fields.items() if concrete_shape(value)}
-    if len(set(shapes.values())) > 1:
-        shown = ", ".join(f"{name} {shape}" for name, shape in shapes.items())
-        raise ValueError(
-            f"{owner} needs fields of one shape (1-D arrays of one length); got {shown}"
-        )
-
-
-def concrete_shape(value: object) -> bool:
-    """True when ``value`` has a shape to compare (not traced)."""
-    return not isinstance(value, jax.core.Tracer)
-
-
-@checked_pytree_dataclass
-class LoadSpectrum:
-    """A load spectrum: each case is a torque applied at a speed for a share of the time.
-
-    Attributes (1-D arrays of one length):
-        torque: joint torque M_i [N·m], ≥ 0.
-        speed: joint speed n_i [rpm], ≥ 0.
-        vehicle_speed: vehicle speed V_i [km/h] (for the life in km, 4.2.3), ≥ 0.
-        share: share a_i of the running time [–], ≥ 0, summing to 1.
-
-    All finite real numbers; checked when built from concrete values (not
-    when JAX rebuilds one, nor for traced fields).
-    """
-
-    torque: ArrayLike
-    speed: ArrayLike
-    vehicle_speed: ArrayLike
-    share: ArrayLike
-
-    def __post_init__(self) -> None:
-        check_non_negative("LoadSpectrum.torque", self.torque, " N·m")
-        check_non_negative("LoadSpectrum.speed", self.speed, " rpm")
-        check_non_negative("LoadSpectrum.vehicle_speed", self.vehicle_speed, " km/h")
-        check_shares("LoadSpectrum.share", self.share)
-        _check_one_shape(
-            "LoadSpectrum",
-            {name: getattr(self, name) for name in ("torque", "speed", "vehicle_speed", "share")},
-        )
-
-
-@checked_pytree_dataclass
-class WorkingConditions:
-    """Working conditions of the joint (e.g. static, steer left/right, bound, rebound).
-
-    Attributes (1-D arrays of one length):
-        angle: working articulation angle γ_j [rad], 0 ≤ γ_j < π/2; it enters
-            through M_d(γ).
-        share: share w_j of the mileage spent in the condition [–], ≥ 0,
-            summing to 1.
-
-    All finite real numbers; checked when built from concrete values.
-    """
-
-    angle: ArrayLike
-    share: ArrayLike
-
-    def __post_init__(self) -> None:
-        check(
-            "WorkingConditions.angle",
-            self.angle,
-            lambda a: np.isfinite(a) & (a >= 0) & (a < math.pi / 2),
-            "0 ≤ angle < π/2 rad (finite)",
-        )
-        check_shares("WorkingConditions.share", self.share)
-        _check_one_shape("WorkingConditions", {"angle": self.angle, "share": self.share})
-
-
-@pytree_dataclass
-class Life:
-    """Rolling-contact life of a joint under a spectrum and working conditions.
-
-    Attributes:
-        hours: combined life L_h [h].
-        km: combined life in kilometres L_s = L_h · V_m (4.2.3) [km].
-        hours_per_condition: life L_h,j if the joint ran in condition j only [h].
-        M_d_per_condition: long-lasting capacity M_d(γ_j) [N·m].
-        result: code (int32, [`RESULTS`][tripodjax.results.RESULTS]): the κ
-            solve's, or ``nonfinite`` where an input or the life is NaN (an
-            infinite life, from a spectrum that does no damage, is successful).
-    """
-
-    hours: jax.Array
-    km: jax.Array
-    hours_per_condition: jax.Array
-    M_d_per_condition: jax.Array
-    result: jax.Array
-
-
-def joint_life(
-    d: ArrayLike,
-    R: ArrayLike,
-    spectrum: LoadSpectrum,
-    conditions: WorkingConditions,
-    *,
-    conformity: ArrayLike,
-    P_d: ArrayLike,
-    C_s: ArrayLike,
-    n_rollers: int = 3,
-    pressure_angle: ArrayLike = math.pi / 2,
-    helix_angle: ArrayLike = 0.0,
-) -> Life:
-    """Palmgren–Miner life of a joint in hours and km (4.2.1–4.2.3).
-
-    For each working condition j the capacity M_d(γ_j) gives the spectrum's
-    life L_h,j (4.2.2, 4.2.1); the conditions combine by Miner's rule on their
-    shares, 1/L_h = Σ w_j / L_h,j, and L_s = L_h · V_m with V_m = Σ a_i V_i.
-
-    Args: d, R > 0 [mm]; ``spectrum`` a [`LoadSpectrum`][tripodjax.hertz.LoadSpectrum]; ``conditions``
-    a [`WorkingConditions`][tripodjax.hertz.WorkingConditions]; conformity Ψ ≥ 1.0005; P_d > 0 [MPa];
-    C_s > 0; n_rollers an integer ≥ 1; angles as [`capacities`][tripodjax.hertz.capacities]. Inside
-    ``jit`` a non-finite input gives a NaN life and ``result = nonfinite``.
-    Differentiable w.r.t. d, R, the conformity and P_d.
-    """
-    if not isinstance(spectrum, LoadSpectrum):
-        raise TypeError(
-            f"spectrum = {spectrum!r} ({type(spectrum).__name__}) is not allowed; "
-            "allowed: a hertz.LoadSpectrum"
-        )
-    if not isinstance(conditions, WorkingConditions):
-        raise TypeError(
-            f"conditions = {conditions!r} ({type(conditions).__name__}) is not allowed; "
-            "allowed: a hertz.WorkingConditions"
-        )
-    check_positive(d=d, R=R, P_d=P_d, C_s=C_s)
-    check_conformity(conformity)
-    _check_n_rollers(n_rollers)
-    _check_angles(pressure_angle, helix_angle)
-    C_p, _, kappa_code = _conformity_coefficient(conformity)
-    M_d = _torque_at_pressure(
-        P_d,
-        d,
-        R,
-        C_p,
-        C_s,
-        n_rollers,
-        pressure_angle,
-        helix_angle,
-        jnp.asarray(conditions.angle),
-    )
-    per_condition = _life_hours(M_d, spectrum.torque, spectrum.speed, spectrum.share)
-    hours = 1.0 / jnp.sum(jnp.asarray(conditions.share) / per_condition)
-    mean_speed = jnp.sum(jnp.asarray(spectrum.share) * jnp.asarray(spectrum.vehicle_speed))
-    ok = _all_finite(M_d, per_condition, conditions.share, spectrum.vehicle_speed)
-    ok = ok & ~jnp.isnan(hours) & ~jnp.isnan(mean_speed)
-    hours, km = _nan_unless(ok, hours), _nan_unless(ok, hours * mean_speed)
-    code = worst(
-        jnp.max(kappa_code),
-        code_where(ok & ~jnp.isnan(km), RESULTS.successful, RESULTS.nonfinite),
-    )
-    return Life(
-        hours=hours,
-        km=km,
-        hours_per_condition=per_condition,
-        M_d_per_condition=M_d,
-        result=code,
-    )
