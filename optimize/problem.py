@@ -353,8 +353,8 @@ def evaluate(spec: Spec, design: Mapping[str, float]) -> dict:
         >>> round(out["quantities"]["outer_diameter"], 1)
         70.4
     """
-    structure = spec.structure
-    values, x = _design_values(spec, design)  # checks spec and design
+    structure = check_spec(spec).structure
+    values, x = _design_values(spec, design)
     with jax.enable_x64(True):  # the design problem runs in float64; scoped to this call
         objective, margins, q, code = call(_evaluate, structure, values, jnp.asarray(x))
         objective, margins = float(objective), [float(m) for m in margins]
@@ -476,7 +476,7 @@ def life_report(spec: Spec, design: Mapping[str, float]) -> dict:
     spectrum the cases carry their index ``case`` and ``None`` for mode, gear and engine
     condition; without a vehicle M_max_backward_Nm is NaN.
     """
-    values, x = _design_values(spec, design)  # checks spec and design
+    values, x = _design_values(check_spec(spec), design)
     with jax.enable_x64(True):
         return _life_report(spec.structure, values, x)
 

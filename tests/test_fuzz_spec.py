@@ -270,13 +270,13 @@ def test_replace_values_takes_real_scalars_of_any_array_library(convert):
     changed = SPEC.replace_values(
         hertz=types.MappingProxyType({"P_d": convert(1300)}),
         layout={"gamma0_deg": convert(22)},
-        life={"torque": (convert(1154), 700.0, 350.0, 150.0)},
+        vehicle={"engine_torque_Nm": (convert(555), 555.0, 517.4, 50.0)},
         bounds={"R": np.array([convert(15), 40.0])},
     )
     expected = SPEC.replace_values(
         hertz={"P_d": 1300.0},
         layout={"gamma0_deg": 22.0},
-        life={"torque": [1154.0, 700.0, 350.0, 150.0]},
+        vehicle={"engine_torque_Nm": [555.0, 555.0, 517.4, 50.0]},
         bounds={"R": [15.0, 40.0]},
     )
     assert changed.structure == expected.structure
