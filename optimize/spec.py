@@ -203,6 +203,14 @@ class Structure:
         return used | {"static_capacity", "life_km"}
 
 
+# Internal value (section, key) in radians → its key in the file (a pair: a nested table), in degrees.
+_SPEC_UNITS = {
+    ("layout", "gamma0"): ("gamma0_deg", "deg"),
+    ("life", "condition_angle"): (("conditions", "angle_deg"), "deg"),
+    ("life", "condition_share"): (("conditions", "share"), None),
+}
+
+
 def _flatten_spec(spec):
     return (spec.values,), spec.structure
 
@@ -228,8 +236,31 @@ class Spec:
     values: dict
     resolved: dict = dataclasses.field(default=None, compare=False)
 
-    def __getitem__(self, section):
-        return self.values[section]
+    def __getitem__(self, section: str) -> dict:
+        """The numbers of one section in the spec file's own keys and units (a copy).
+
+        ``spec["layout"]`` is ``{"l": mm, "gamma0_deg": deg}``, ``spec["bounds"]["gamma0_deg"]``
+        is ``[lo, hi]`` in degrees and ``spec["life"]["conditions"]`` holds ``angle_deg`` and
+        ``share``: what a file says is what the view says, so bounds read here can be handed
+        to [`evaluate`][tripodjax.optimize.evaluate] as they are. The internal values (radians,
+        the traced pytree) are [`values`][tripodjax.optimize.Spec].
+        """
+        if section not in self.values:
+            raise KeyError(f"{section!r}; sections: {', '.join(self.values)}")
+        view = {}
+        for key, value in self.values[section].items():
+            name, to_spec = _SPEC_UNITS.get((section, key), (key, None))
+            value = np.array(value, np.float64)
+            if to_spec is not None or (section == "bounds" and key == "gamma0_deg"):
+                value = np.degrees(value)
+            value = float(value) if value.ndim == 0 else value
+            if isinstance(name, tuple):  # a nested table of the file, e.g. life.conditions
+                view.setdefault(name[0], {})[name[1]] = value
+            else:
+                view[name] = value
+        if section == "life" and "conditions" in view and self.structure.condition_names:
+            view["conditions"]["names"] = list(self.structure.condition_names)
+        return view
 
     def replace_values(self, **sections: dict) -> "Spec":
         """A copy with some numbers changed, e.g. ``spec.replace_values(loads={"M_max": 1200.0})``.
