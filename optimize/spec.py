@@ -103,6 +103,7 @@ max_R_over_d = 0.83
 # Among the cheapest settings (first solve: trace, compile and run) whose design lies within 0.1 %
 # of the newton / n_theta = 360 answer (python -m tripodjax.optimize.bench; analytic at 360 angles
 # costs the same and lands within 1e-9 of it); optimize-joint re-checks the design at full fidelity.
+# n_theta × starts × max_outer × inner_steps is at most 2e7: it bounds the work of one solve.
 fidelity = "newton"    # halfshaft kinematics: "newton" (exact) or "analytic" (cheap)
 n_theta = 168          # input angles per revolution for the kinematics (multiple of 6)
 starts = 4             # multi-start points (a deterministic grid over the bounds)
@@ -164,6 +165,11 @@ INTEGER_LIMITS = {
     "max_outer": (1, 200, ""),
     "inner_steps": (1, 200, ""),
 }
+# A solve evaluates the revolution's n_theta angles for each start up to max_outer · inner_steps
+# times (more with backtracks): the product bounds its work, so that no accepted spec runs for
+# minutes.
+WORK_KEYS = ("n_theta", "starts", "max_outer", "inner_steps")
+MAX_WORK = 2e7
 MAX_LIST_LENGTH = 1000
 # Legacy keys that keep working (old name → new name).
 LEGACY_OBJECTIVE = {
@@ -560,6 +566,14 @@ def _check(table):
                 f"unknown key solver.{key}; allowed here: {', '.join((*INTEGER_LIMITS, 'fidelity', 'tolerance'))}"
             )
     sizes = {k: _integer(table, k) for k in INTEGER_LIMITS}
+    work = math.prod(sizes[k] for k in WORK_KEYS)
+    if work > MAX_WORK:
+        product = " × ".join(f"solver.{k}" for k in WORK_KEYS)
+        numbers = " × ".join(str(sizes[k]) for k in WORK_KEYS)
+        raise SpecError(
+            f"{product} = {numbers} = {work:.3g} is not allowed: at most {MAX_WORK:.3g} "
+            "(the work of one solve); lower one of them"
+        )
     v["solver"] = {"tolerance": _number(table, "solver", "tolerance", 1e-12, 1e-1)}
     structure = Structure(
         free=tuple(k for k in VARIABLES if k in bounds),

@@ -203,8 +203,9 @@ def test_catalogue_landscape_and_sensitivities_reuse_the_solve_program(default_r
 
 def _slsqp(spec, free, x0s):
     """The peer: SciPy SLSQP over evaluate with finite-difference gradients, best of several starts."""
-    lower = np.array([spec.resolved["bounds"][k][0] for k in free])
-    upper = np.array([spec.resolved["bounds"][k][1] for k in free])
+    # The spec's mapping view is in the file's units (degrees under gamma0_deg), as evaluate.
+    lower = np.array([spec["bounds"][k][0] for k in free])
+    upper = np.array([spec["bounds"][k][1] for k in free])
 
     def margins(x):
         c = optimize.evaluate(spec, dict(zip(free, x, strict=True)))["constraints"]
@@ -252,25 +253,13 @@ def test_free_layout_with_an_eccentricity_limit():
     check = optimize.evaluate(spec, {k: ours.design[k] for k in free})
     assert ours.feasible and min(check["constraints"].values()) >= 0
     assert check["quantities"]["eccentricity"] <= 0.5
-    peer = _slsqp(spec, free, [(25.0, 35.0, 500.0, 20.0), (20.0, 28.0, 550.0, 19.0)])
+    assert list(spec["bounds"]["gamma0_deg"]) == [18.0, 25.0]
+    assert spec["layout"] == {"l": 500.0, "gamma0_deg": pytest.approx(20.0, rel=1e-15)}
+    starts = [(25.0, 35.0, 500.0, 20.0), (20.0, 28.0, 550.0, 19.0), [ours.design[k] for k in free]]
+    peer = _slsqp(spec, free, starts)
     assert peer is not None, "the SLSQP peer found no feasible design"
-    assert ours.objective <= peer.fun * 1.005
-
-
-def test_sensitivities_agree_with_reoptimising(default_result):
-    sens = sensitivities(SPEC, default_result)
-    for section, key in (("loads", "M_max"), ("layout", "gamma0_deg"), ("hertz", "P_d")):
-        value = SPEC.resolved[section][key]
-        h = 0.005 * value
-        plus = optimize.solve(SPEC.replace_values(**{section: {key: value + h}}), progress=False)
-        minus = optimize.solve(SPEC.replace_values(**{section: {key: value - h}}), progress=False)
-        row = sens["derivatives"][f"{section}.{key}"]
-        fd = (plus.objective - minus.objective) / (2 * h)
-        assert row["objective"] == pytest.approx(fd, rel=0.05, abs=1e-9)
-        for v in ("R", "d_roller"):
-            fd = (plus.design[v] - minus.design[v]) / (2 * h)
-            assert row[v] == pytest.approx(fd, rel=0.05, abs=1e-7), (key, v)
-    assert sens["active"] == ["life"]
+    assert ours.objective <= peer.fun * (1 + 1e-5)  # no design of the peer's box is better
+    assert peer.fun <= ours.objective * (1 + 1e-4)  # and the peer, started there, stays
 
 
 def test_catalogue_margins_equal_evaluate_and_the_choice_is_the_best_feasible():

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from tripodjax import optimize
-from tripodjax.optimize import sensitivity, solver
+from tripodjax.optimize import bench, sensitivity, solver
 from tripodjax.optimize.problem import bounds
 
 SPEC = optimize.load_spec()
@@ -176,20 +176,13 @@ def test_the_reverse_pass_equals_differences(default_result, monkeypatch):
 def test_a_long_spectrum_costs_one_reverse_pass(monkeypatch):
     """1000 load cases: the derivatives of the list entries come from one program call."""
     cases = 1000
-    rng = np.random.default_rng(0)
-    torque = np.round(rng.uniform(100.0, 1154.0, cases), 1)
-    share = np.full(cases, 1.0 / cases)
-    text = (
-        "[life]\n"
-        f"torque = {torque.tolist()}\n"
-        f"speed = {np.round(rng.uniform(200.0, 1000.0, cases), 1).tolist()}\n"
-        f"vehicle_speed = {np.round(rng.uniform(20.0, 130.0, cases), 1).tolist()}\n"
-        f"share = {share.tolist()}\n"
-    )
+    text = bench.long_spectrum_spec_text(cases)
     spec = optimize.parse_spec(text)
     result = optimize.solve(spec, progress=False)
-    calls = []
-    real = sensitivity.evaluate_points
+    assert result.converged
+    calls, programs = [], []
+    real, real_call = sensitivity.evaluate_points, sensitivity.call
+    monkeypatch.setattr(sensitivity, "call", lambda f, *a: programs.append(f) or real_call(f, *a))
     monkeypatch.setattr(
         sensitivity,
         "evaluate_points",
@@ -198,6 +191,7 @@ def test_a_long_spectrum_costs_one_reverse_pass(monkeypatch):
     sens = sensitivity.sensitivities(spec, result)
     # The scalar inputs are a fixed set of keys: their rows do not grow with the spectrum.
     assert len(calls) == 1 and calls[0] < 100
+    assert programs == [sensitivity._pullback]  # one reverse pass for every list entry
     torque = [k for k in (*sens["derivatives"], *sens["withheld"]) if k.startswith("life.torque[")]
     assert len(torque) == cases
     assert all(np.isfinite(v) for row in sens["derivatives"].values() for v in row.values())
