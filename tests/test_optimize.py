@@ -118,6 +118,11 @@ def test_evaluate_rejects_bad_designs_naming_the_key(design, error, message):
         ("[solver]\nn_theta = 100", "solver.n_theta = 100 is not allowed"),
         ("[solver]\nn_theta = 9999996", "from 6 to 3600"),
         ("[solver]\nstarts = 1e20", "solver.starts"),
+        (  # each size within its range, but together minutes of work
+            "[solver]\nn_theta = 3600\nstarts = 64\nmax_outer = 200\ninner_steps = 200",
+            "solver.n_theta × solver.starts × solver.max_outer × solver.inner_steps",
+        ),
+        ("[solver]\nn_theta = 360\nstarts = 16", "= 360 × 16 × 25 × 30 = 4.32e+06 is not allowed"),
         ('[friction]\ngrease = "C"', "friction.grease = 'C' is not allowed"),
         ("[objective]\nw_sizes = 1.0", "unknown key objective.w_sizes; allowed"),
         ("[constraints]\nmax_colour = 1.0", "gaf_rms"),
