@@ -5,13 +5,14 @@ the optimum), never from fixed design numbers: the default design may move.
 """
 
 import dataclasses
+import json
 
 import jax
 import numpy as np
 import pytest
 
 from tripodjax import optimize
-from tripodjax.optimize import bench, sensitivity, solver
+from tripodjax.optimize import bench, report, sensitivity, solver
 from tripodjax.optimize.problem import bounds
 
 SPEC = optimize.load_spec()
@@ -142,6 +143,16 @@ def test_a_constraint_about_to_switch_is_named_and_its_numbers_withheld(limit):
         assert "max_outer_diameter" in sens["withheld"][key]
         distance = sens["switch_distance"]["max_outer_diameter"][key]
         assert 0 < abs(distance) <= sens["switch_step"]
+    # report.json: the same, strict JSON; the tornado shows only what is given.
+    body = report.report_dict(result, spec)
+    json.dumps(body, allow_nan=False)
+    notes = body["sensitivity_notes"]
+    assert notes["switch_step"] == 0.01 and "hertz.P_d" in notes["withheld"]
+    assert notes["switch_distance"] == sens["switch_distance"]
+    assert "hertz.P_d" not in body["sensitivities"] and "hertz.P_s" in body["sensitivities"]
+    tornado = report.figure_tornado(result)
+    labels = [t.get_text() for t in tornado.axes[0].get_yticklabels()]
+    assert labels and "hertz.P_d" not in labels
     # Withheld per input: the derivatives that are given hold against re-optimising.
     candidates = ("layout.gamma0_deg", "life.vehicle_speed[0]", "life.conditions.angle_deg[0]")
     given = [k for k in candidates if k in sens["elasticities"]]
