@@ -9,6 +9,8 @@ Every figure is measured in the same run against a peer, and reported as a ratio
 - in one process, after one ``solve``, a ``solve`` of a spec that differs in a number
   (``vehicle.adhesion``, which moves M_max and the life), against SciPy's SLSQP over the same ``evaluate`` with
   finite-difference gradients, and the distance between their designs;
+- a spec with a 1000-case life spectrum: its first solve, its sensitivities (O(sections): one
+  reverse pass for the lists) and the whole command, cold;
 - for each ``[solver] fidelity`` and ``n_theta``, the first solve (trace, compile and run:
   what a fresh process waits for), a re-solve, and the distance of the design and objective
   from the newton / float64 / n_theta = 360 answer;
@@ -273,6 +275,59 @@ def report_writing(repeats=3):
     return figures
 
 
+def long_spectrum_spec_text(cases=1000, seed=0):
+    """A spec whose life spectrum has ``cases`` load cases (the largest list a spec may hold)."""
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    lists = {
+        "torque": np.round(rng.uniform(100.0, 1154.0, cases), 1),
+        "speed": np.round(rng.uniform(200.0, 1000.0, cases), 1),
+        "vehicle_speed": np.round(rng.uniform(20.0, 130.0, cases), 1),
+        "share": np.full(cases, 1.0 / cases),
+    }
+    return "[life]\n" + "".join(f"{k} = {v.tolist()}\n" for k, v in lists.items())
+
+
+def long_spectrum(cases=1000, command=True):
+    """The ``cases``-entry spectrum: in one process the first solve and the sensitivities
+    (their reverse pass compiled on first use) [s], and the whole ``optimize-joint`` run,
+    cold, against the import floor."""
+    from tripodjax import optimize
+
+    text = long_spectrum_spec_text(cases)
+    spec = optimize.parse_spec(text)
+    start = time.perf_counter()
+    result = optimize.solve(spec, progress=False)
+    solve_s = time.perf_counter() - start
+    start = time.perf_counter()
+    sens = optimize.sensitivities(spec, result)
+    sensitivities_s = time.perf_counter() - start
+    start = time.perf_counter()
+    optimize.sensitivities(spec, result)
+    again_s = time.perf_counter() - start
+    out = {
+        "cases": cases,
+        "inputs": len(sens["derivatives"]) + len(sens["withheld"]),
+        "first_solve_s": solve_s,
+        "sensitivities_s": sensitivities_s,
+        "sensitivities_again_s": again_s,
+        "sensitivities_over_solve": sensitivities_s / solve_s,
+    }
+    if command:
+        floor = _seconds([sys.executable, "-c", "import jax, matplotlib.pyplot"], repeats=3)
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "long.toml")
+            with open(path, "w", encoding="utf-8") as f:
+                f.write(text)
+            env = dict(os.environ, TRIPODJAX_CACHE_DIR=os.path.join(tmp, "cache"))
+            cli = [sys.executable, "-P", "-m", "tripodjax.optimize.cli", path, "--progress", "off"]
+            out["command_cold_s"] = _seconds(cli + ["--out", os.path.join(tmp, "out")], env)
+        out["floor_s"] = floor
+        out["command_cold_over_floor"] = out["command_cold_s"] / floor
+    return out
+
+
 def optimize_default_structure():
     from tripodjax import optimize
 
@@ -340,6 +395,17 @@ def main(argv=None):
             f"{row['structure']:<30} {row['first_solve_s']:>15.2f}  {row['solve_s'] * 1e3:>13.1f}  "
             f"{row['converged']}"
         )
+    figures["long_spectrum"] = g = long_spectrum(command=not args.skip_command)
+    print(
+        f"{g['cases']}-case spectrum ({g['inputs']} inputs): first solve {g['first_solve_s']:.1f} s, "
+        f"sensitivities {g['sensitivities_s']:.1f} s ({g['sensitivities_over_solve']:.2f}× the solve; "
+        f"{g['sensitivities_again_s']:.2f} s once compiled)"
+        + (
+            f"; optimize-joint cold {g['command_cold_s']:.1f} s ({g['command_cold_over_floor']:.1f}× floor)"
+            if "command_cold_s" in g
+            else ""
+        )
+    )
     if args.json:
         with open(args.json, "w", encoding="utf-8") as f:
             json.dump(figures, f, indent=2)

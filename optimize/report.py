@@ -96,17 +96,11 @@ def report_dict(
         report["life"] = life
     if result.sensitivities is not None:
         sens = result.sensitivities
-        notes = {k: sens[k] for k in ("active", "on_bound", "near_switch", "condition_number")}
+        keys = ("active", "on_bound", "near_switch", "withheld", "switch_distance", "switch_step")
+        notes = {k: sens[k] for k in (*keys, "condition_number", "unavailable") if k in sens}
+        # An input with a switch within switch_step has no derivative (it would hold on one
+        # side only): it is absent from "sensitivities" and listed under "withheld".
         report["sensitivities"] = sens["derivatives"]
-        if "unavailable" in sens:
-            notes["unavailable"] = sens["unavailable"]
-        if sens["near_switch"]:  # one-sided derivatives are not printed as if they were two-sided
-            report["sensitivities"] = {}
-            notes["unavailable"] = (
-                "constraints about to switch (multiplier or margin near zero): "
-                + ", ".join(sens["near_switch"])
-                + "; a derivative would hold on one side only, so none is given"
-            )
         report["sensitivity_notes"] = notes
     if catalogue is not None:
         report["catalogue"] = catalogue

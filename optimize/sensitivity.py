@@ -10,93 +10,152 @@ number p of the spec (the solution is differentiated, not the iterations):
     [ H   −J_Aᵀ ] [dx/dp]     [ ∂ₚ∇ₓL ]
     [ J_A   0   ] [dλ/dp] = − [ ∂ₚc_A  ],     L = f − λ·c,
 
-solved here directly. The optimal
-objective's derivative is ∂ₚL at (x*, λ*) (the envelope theorem). Variables on a
-bound stay there. A constraint that is about to switch — active with a multiplier
-near zero, or inactive with a margin near zero — makes the derivative one-sided;
-it is named in ``near_switch`` instead of being trusted silently.
+solved here directly. The optimal objective's derivative is ∂ₚL at (x*, λ*) (the
+envelope theorem). Variables on a bound stay there.
+
+The right-hand side costs O(sections), not O(numbers): the scalar numbers of the spec
+(a fixed set of keys) by central differences of the exact first derivatives, through
+the solve's own compiled program; the list entries (a load spectrum of up to a thousand
+cases) by one reverse pass, ``jax.vjp`` of (f, c, ∇ₓf, Jₓc) w.r.t. every list at once
+pulled back along the n + m rows of the KKT system, once they outnumber
+``REVERSE_FROM`` (a few entries cost less by differences than a second program).
+
+A derivative holds only while the active set does. A constraint switches where its
+multiplier (active) or its margin (inactive) reaches zero; from dλ/dp and the total
+dc/dp the linearised change of each input at which that happens is
+``switch_distance`` (relative to the input). A variable reaching or leaving a bound
+switches likewise. Every input with a switch within ``SWITCH_STEP`` (1 %) of itself
+has its derivatives withheld (``withheld``: the input and the constraints that switch),
+since they would hold on one side only.
 """
 
+import functools
 import math
 
 import jax
 import numpy as np
 
+from tripodjax.optimize._compiled import call
 from tripodjax.optimize.problem import bounds, check_result, constraint_names
-from tripodjax.optimize.solver import BOUND_TOLERANCE, Result, evaluate_points
-from tripodjax.optimize.spec import Spec
+from tripodjax.optimize.solver import BOUND_TOLERANCE, Result, _evaluation, evaluate_points
+from tripodjax.optimize.spec import VARIABLES, Spec
 
 ACTIVE_MULTIPLIER = 1e-6  # λ above this: the constraint is active
-SWITCH_MULTIPLIER = 1e-4  # active with λ below this: about to leave the active set
-SWITCH_MARGIN = 1e-3  # inactive with a margin below this: about to enter it
+SWITCH_STEP = 0.01  # relative change of an input within which a switch withholds its derivatives
+SWITCH_REPORTED = 1.0  # switch distances up to this relative change are reported
 MAX_CONDITION = 1e12  # a KKT matrix worse than this is singular: a free variable has no effect
+REVERSE_FROM = 64  # list entries from which one reverse pass is cheaper than differences
+SKIPPED = ("bounds", "solver")  # sections that are not inputs of the model
 
 
-def _ravel(tree):
-    """(flat NumPy vector, unravel) for a pytree of NumPy arrays; unravel takes a leading batch."""
-    leaves, treedef = jax.tree_util.tree_flatten(tree)
-    shapes = [np.shape(a) for a in leaves]
-    sizes = [int(np.prod(s)) for s in shapes]
-    flat = np.concatenate([np.ravel(a) for a in leaves])
-
-    def unravel(rows):
-        rows = np.asarray(rows)
-        parts = np.split(rows, np.cumsum(sizes)[:-1], axis=-1)
-        lead = rows.shape[:-1]
-        return treedef.unflatten([p.reshape(lead + s) for p, s in zip(parts, shapes, strict=True)])
-
-    return flat, unravel
+def _inputs(structure, values):
+    """The spec's numbers that enter the model: {(section, key): array}, free variables' own values left out."""
+    free = {VARIABLES[v][:2] for v in structure.free}
+    return {
+        (section, key): np.asarray(value, np.float64)
+        for section, entries in values.items()
+        if section not in SKIPPED
+        for key, value in entries.items()
+        if (section, key) not in free
+    }
 
 
-def _perturbations(values, x):
-    """Rows (values, x): the base point, ± a step in each variable, ± a step in each number."""
-    flat, unravel = _ravel(values)
-    skip, _ = _ravel(
-        {
-            k: jax.tree_util.tree_map(
-                lambda a, k=k: np.full(np.shape(a), k in ("bounds", "solver")), v
-            )
-            for k, v in values.items()
-        }
-    )
-    params = [i for i in range(flat.size) if not skip[i]]
+@functools.partial(jax.jit, static_argnums=0)
+def _pullback(structure, values, x, lists, cotangents):
+    """For each cotangent row, the gradient w.r.t. ``lists`` of ⟨row, (f, c, ∇ₓf, Jₓc)⟩ at x.
+
+    ``lists`` is ``{section: {key: 1-D array}}``, replacing those values; one reverse pass
+    (``jax.vjp``) through the forward-mode Jacobian of the model serves every row.
+    """
+
+    def model(lists):
+        merged = {s: dict(values[s], **lists.get(s, {})) for s in values}
+        f, c, grad_f, jac, _, _ = _evaluation(structure, merged)[3](x)
+        return f, c, grad_f, jac
+
+    _, pull = jax.vjp(model, lists)
+    return jax.vmap(pull)(cotangents)[0]
+
+
+def _difference_rows(values, x, entries):
+    """Rows (values, x): the base point, ± a step in each variable and in each entry.
+
+    ``entries`` are ((section, key), index) with index None for a scalar.
+    """
     hx = 1e-6 * np.maximum(np.abs(x), 1.0)
-    hp = 1e-6 * np.maximum(np.abs(flat[params]), 1e-3)
-    rows_x, rows_p = [x], [flat]
+    rows, hp = [(values, x)], []
     for i, h in enumerate(hx):
         for sign in (1.0, -1.0):
-            rows_x.append(x + sign * h * np.eye(x.size)[i])
-            rows_p.append(flat)
-    for i, h in zip(params, hp, strict=True):
+            rows.append((values, x + sign * h * np.eye(x.size)[i]))
+    for (section, key), index in entries:
+        value = np.asarray(values[section][key], np.float64)
+        h = 1e-6 * max(abs(float(value if index is None else value[index])), 1e-3)
+        hp.append(h)
         for sign in (1.0, -1.0):
-            rows_x.append(x)
-            rows_p.append(flat + sign * h * np.eye(flat.size)[i])
-    return unravel(np.stack(rows_p)), np.stack(rows_x), hx, hp, params, flat.size, unravel
+            changed = np.array(value)
+            changed[() if index is None else index] += sign * h
+            rows.append((dict(values, **{section: dict(values[section], **{key: changed})}), x))
+    batch = jax.tree_util.tree_map(
+        lambda *a: np.stack([np.asarray(v, np.float64) for v in a]), *[r[0] for r in rows]
+    )
+    return batch, np.stack([r[1] for r in rows]), hx, np.asarray(hp)
 
 
-def _derivatives(structure, values, x, lam, free_mask, active_mask):
-    """(dF*/dp, dx*/dp, cond K) with dp over the flattened numbers of the spec.
+def _right_hand_side(structure, values, x, lam, inputs):
+    """(H, J, G = (∇ₓL, c) at x, the columns ∂G/∂p and ∂L/∂p of every input entry).
 
-    The KKT pieces are exact in x (forward mode through the implicit solve); their
-    partial derivatives in x and in each number of the spec are central differences of
-    those exact first derivatives (a second-order forward pass through the implicit
-    solve takes minutes to compile, this one seconds).
+    ``inputs`` maps (section, key) to its array; the columns come in that order, a list
+    one column per entry. Scalars and short lists by central differences, long lists by
+    one reverse pass (see the module docstring).
     """
-    batch, xs, hx, hp, params, size, unravel = _perturbations(values, x)
-    f, c, grad_f, jac, _, _ = evaluate_points(structure, batch, xs)
     n, m = x.size, lam.size
+    entries = sum(v.size for v in inputs.values() if v.ndim > 0)
+    reversed_keys = [k for k, v in inputs.items() if v.ndim > 0 and entries >= REVERSE_FROM]
+    differenced = [
+        (k, None if v.ndim == 0 else i)
+        for k, v in inputs.items()
+        if k not in reversed_keys
+        for i in range(v.size)
+    ]
+    batch, xs, hx, hp = _difference_rows(values, x, differenced)
+    f, c, grad_f, jac, _, _ = evaluate_points(structure, batch, xs)
     L = f - c @ lam
     grad_L = grad_f - np.einsum("bmn,m->bn", jac, lam)
     G = np.concatenate([grad_L, c], 1)
     H = np.stack([(grad_L[1 + 2 * i] - grad_L[2 + 2 * i]) / (2 * hx[i]) for i in range(n)], 1)
-    J = jac[0]
     base = 1 + 2 * n
-    Gp = np.zeros((n + m, size))
-    dL = np.zeros(size)
-    for k, (i, h) in enumerate(zip(params, hp, strict=True)):
-        plus, minus = base + 2 * k, base + 2 * k + 1
-        Gp[:, i] = (G[plus] - G[minus]) / (2 * h)
-        dL[i] = (L[plus] - L[minus]) / (2 * h)
+    dG = (G[base::2] - G[base + 1 :: 2]).T / (2 * hp)
+    dL = (L[base::2] - L[base + 1 :: 2]) / (2 * hp)
+    columns, start = {}, 0
+    for key, value in inputs.items():
+        if key not in reversed_keys:
+            columns[key] = (dG[:, start : start + value.size], dL[start : start + value.size])
+            start += value.size
+    if reversed_keys:
+        # Cotangents of (f, c, ∇ₓf, J): row r < n pulls back ∂(∇ₓL)_r = ∂(∇ₓf − Jᵀλ)_r,
+        # the next m rows ∂c_i, the last ∂L = ∂(f − λ·c).
+        eye_n = np.eye(n)
+        cotangents = (
+            np.concatenate([np.zeros(n + m), [1.0]]),
+            np.concatenate([np.zeros((n, m)), np.eye(m), -lam[None]]),
+            np.concatenate([eye_n, np.zeros((m + 1, n))]),
+            np.concatenate([-lam[None, :, None] * eye_n[:, None, :], np.zeros((m + 1, m, n))]),
+        )
+        lists = {}
+        for section, key in reversed_keys:
+            lists.setdefault(section, {})[key] = inputs[section, key]
+        with jax.enable_x64(True):  # float64, scoped to this call
+            pulled = call(_pullback, structure, values, x, lists, cotangents)
+        for section, key in reversed_keys:
+            rows = np.asarray(pulled[section][key])  # (n + m + 1, entries)
+            columns[section, key] = (rows[: n + m], rows[n + m])
+    Gp = np.concatenate([columns[k][0] for k in inputs], 1)
+    dL = np.concatenate([columns[k][1] for k in inputs])
+    return H, jac[0], G[0], Gp, dL
+
+
+def _kkt_solve(H, J, Gp, free_mask, active_mask):
+    """(du = (dx, dλ)/dp for every column of Gp, cond K); du None when K is singular."""
     fm, am = free_mask.astype(float), active_mask.astype(float)
     # Rows of variables on a bound and of inactive constraints become identities (no change).
     K = np.block(
@@ -107,9 +166,35 @@ def _derivatives(structure, values, x, lam, free_mask, active_mask):
     )
     cond = float(np.linalg.cond(K))
     if not np.isfinite(cond) or cond > MAX_CONDITION:
-        return None, None, cond
-    du = -np.linalg.solve(K, np.concatenate([fm, am])[:, None] * Gp)
-    return unravel(dL), unravel(du[:n]), cond
+        return None, cond
+    return -np.linalg.solve(K, np.concatenate([fm, am])[:, None] * Gp), cond
+
+
+def _switches(names, lam, margins, active, free, x, lower, upper, G0, H, J, Gp, du):
+    """{name: d(name's switching quantity)/dp and its value}: each crosses zero at a switch.
+
+    Constraints: λ_i (active) or the margin c_i (inactive, with its total derivative
+    ∂c_i/∂p + J_i·dx/dp). Variables: the distance to the nearer bound (off a bound) or the
+    bound's multiplier, the reduced gradient (∇ₓL)_v (on a bound).
+    """
+    n = x.size
+    dx, dlam = du[:n], du[n:]
+    dc = Gp[n:] + J @ dx
+    out = {}
+    for i, name in enumerate(names):
+        out[name] = (lam[i], dlam[i]) if active[i] else (margins[i], dc[i])
+    dgrad = Gp[:n] + H @ dx - J.T @ dlam
+    for v, variable in enumerate(free):
+        at_lower = x[v] - lower[v] <= 10 * BOUND_TOLERANCE * (upper[v] - lower[v])
+        at_upper = upper[v] - x[v] <= 10 * BOUND_TOLERANCE * (upper[v] - lower[v])
+        if at_lower or at_upper:  # leaves the bound when its multiplier ±(∇ₓL)_v reaches 0
+            sign = 1.0 if at_lower else -1.0  # ∇ₓL_v ≥ 0 on a lower bound, ≤ 0 on an upper
+            side = "lower" if at_lower else "upper"
+            out[f"{variable}_{side}_bound"] = (sign * G0[v], sign * dgrad[v])
+        else:  # reaches whichever bound it moves towards
+            out[f"{variable}_lower_bound"] = (x[v] - lower[v], dx[v])
+            out[f"{variable}_upper_bound"] = (upper[v] - x[v], -dx[v])
+    return out
 
 
 # Internal value path → (spec key, factor from per-internal-unit to per-spec-unit).
@@ -123,27 +208,52 @@ def _spec_key(section, key):
     return f"{section}.{key}", 1.0
 
 
+def _labels(inputs):
+    """Per column: (label, factor to spec units, the spec-unit value a relative change is of)."""
+    out = []
+    for (section, key), value in inputs.items():
+        spec_key, factor = _spec_key(section, key)
+        for i, p in enumerate(np.ravel(value)):
+            label = spec_key if value.ndim == 0 else f"{spec_key}[{i}]"
+            p_spec = math.degrees(float(p)) if factor != 1.0 else float(p)
+            # The conformity Ψ: per relative change of the clearance Ψ − 1 (a relative change of
+            # Ψ itself would read as a huge number).
+            relative_of = p_spec - 1.0 if label == "hertz.conformity" else p_spec
+            out.append((label, factor, relative_of))
+    return out
+
+
 def sensitivities(spec: Spec, result: Result) -> dict:
     """Derivatives of the optimal objective and of each free variable w.r.t. every fixed number.
 
     Args:
         spec: the [`Spec`][tripodjax.optimize.Spec] that was solved.
-        result: its [`Result`][tripodjax.optimize.Result].
+        result: its [`Result`][tripodjax.optimize.Result] (``solve(spec, sensitivities=True)``
+            fills ``result.sensitivities`` with this).
 
     Returns:
         ``{"derivatives": {"<section>.<key>": {"objective": …, "<variable>": …}},
-        "elasticities": {…same keys…}, "active": [...], "near_switch": [...],
-        "condition_number": float}``, and ``"unavailable"`` (a sentence) with empty
-        derivatives when the KKT matrix is singular: per unit of the spec's own unit (per degree for
-        ``*_deg`` keys; list entries as ``key[i]``); the free variables in spec units.
-        Elasticities are (p / y)·dy/dp; for the conformity Ψ, p is the clearance Ψ − 1
-        (a relative change of Ψ itself would read as a huge number).
+        "elasticities": {…same keys…}, "active": [...], "on_bound": [...],
+        "near_switch": [...], "withheld": {key: [names]}, "switch_distance":
+        {name: {key: r}}, "switch_step": SWITCH_STEP, "condition_number": float}``, and
+        ``"unavailable"`` (a sentence) with empty derivatives when the KKT matrix is
+        singular. Derivatives are per unit of the spec's own unit (per degree for ``*_deg``
+        keys; list entries as ``key[i]``); the free variables in spec units. Elasticities
+        are (p / y)·dy/dp; for the conformity Ψ, p is the clearance Ψ − 1 (a relative change
+        of Ψ itself would read as a huge number).
+
+        ``switch_distance[name][key]`` is the relative change r of the input (Δp = r·p; of
+        Ψ − 1 for the conformity) at which, linearised, the constraint ``name`` (or the bound
+        ``<variable>_lower_bound`` / ``_upper_bound``) switches: an active one's multiplier
+        or an inactive one's margin reaches zero. Given for |r| ≤ ``SWITCH_REPORTED``; an
+        input that is zero has no relative change and none. Every input with a switch at
+        |r| ≤ ``switch_step`` is left out of the derivatives and listed in ``withheld`` with
+        the names that switch; ``near_switch`` lists those names.
     """
     check_result(spec, result)
     structure, values = spec.structure, spec.values
     names = constraint_names(structure)
     lam = np.array([result.multipliers[n] for n in names])
-    margins = np.array([result.constraints[n]["margin"] for n in names])
     x = np.asarray(result.x)
     lower, upper = bounds(structure, values, np)
     width = upper - lower
@@ -151,19 +261,19 @@ def sensitivities(spec: Spec, result: Result) -> dict:
         upper - x <= 10 * BOUND_TOLERANCE * width
     )
     active = lam > ACTIVE_MULTIPLIER
-    near_switch = [
-        n
-        for n, a, lm, mg in zip(names, active, lam, margins, strict=True)
-        if (a and lm < SWITCH_MULTIPLIER) or (not a and mg < SWITCH_MARGIN)
-    ]
-    dF, dx, cond = _derivatives(structure, values, x, lam, ~on_bound, active)
+    inputs = _inputs(structure, values)
+    H, J, G0, Gp, dL = _right_hand_side(structure, values, x, lam, inputs)
+    du, cond = _kkt_solve(H, J, Gp, ~on_bound, active)
     notes = {
         "active": [n for n, a in zip(names, active, strict=True) if a],
         "on_bound": [v for v, b in zip(structure.free, on_bound, strict=True) if b],
-        "near_switch": near_switch,
+        "near_switch": [],
+        "withheld": {},
+        "switch_distance": {},
+        "switch_step": SWITCH_STEP,
         "condition_number": cond,
     }
-    if dF is None:  # no derivative exists: say so instead of printing numbers
+    if du is None:  # no derivative exists: say so instead of printing numbers
         unused = [v for v, b in zip(structure.free, on_bound, strict=True) if not b]
         notes["unavailable"] = (
             f"the KKT matrix is singular (condition number {cond:.3g}): one of the free "
@@ -171,36 +281,39 @@ def sensitivities(spec: Spec, result: Result) -> dict:
             "the active constraints"
         )
         return {"derivatives": {}, "elasticities": {}, **notes}
+    margins = G0[x.size :]  # c − offset: zero on the solver's active set
+    switches = _switches(
+        names, lam, margins, active, structure.free, x, lower, upper, G0, H, J, Gp, du
+    )
+    labels = _labels(inputs)
     derivatives, elasticities = {}, {}
     optimum = {v: result.design[v] for v in structure.free}
-    for section, entries in values.items():
-        if section in ("bounds", "solver"):
+    for j, (label, factor, relative_of) in enumerate(labels):
+        switching = []
+        for name, (level, slope) in switches.items():
+            # level + slope·Δp = 0 at Δp = −level / slope (internal units); relative to p.
+            step = slope[j] * factor * relative_of  # change of the level per unit r
+            if relative_of == 0 or step == 0 or not np.isfinite(step):
+                continue
+            r = float(-max(level, 0.0) / step)
+            if abs(r) <= SWITCH_REPORTED:
+                notes["switch_distance"].setdefault(name, {})[label] = r
+            if abs(r) <= SWITCH_STEP:
+                switching.append(name)
+        if switching:
+            notes["withheld"][label] = switching
             continue
-        for key, value in entries.items():
-            if section == "design" and key in structure.free:
-                continue
-            if section == "layout" and {"l": "l", "gamma0": "gamma0_deg"}[key] in structure.free:
-                continue
-            if section in ("hertz", "friction") and key in structure.free:
-                continue
-            spec_key, factor = _spec_key(section, key)
-            value = np.asarray(value)
-            indices = [()] if value.ndim == 0 else [(i,) for i in range(value.shape[0])]
-            for idx in indices:
-                label = spec_key if not idx else f"{spec_key}[{idx[0]}]"
-                row = {"objective": float(dF[section][key][idx]) * factor}
-                for v, variable in enumerate(structure.free):
-                    d = float(dx[section][key][(v,) + idx]) * factor
-                    row[variable] = d * (180.0 / math.pi if variable == "gamma0_deg" else 1.0)
-                p_spec = math.degrees(float(value[idx])) if factor != 1.0 else float(value[idx])
-                if label == "hertz.conformity":  # per relative change of the clearance Ψ − 1
-                    p_spec -= 1.0
-                derivatives[label] = row
-                elasticities[label] = {
-                    k: (p_spec * d / y if y != 0 else float("nan"))
-                    for k, d, y in (
-                        (k, d, result.objective if k == "objective" else optimum[k])
-                        for k, d in row.items()
-                    )
-                }
+        row = {"objective": float(dL[j]) * factor}
+        for v, variable in enumerate(structure.free):
+            d = float(du[v, j]) * factor
+            row[variable] = d * (180.0 / math.pi if variable == "gamma0_deg" else 1.0)
+        derivatives[label] = row
+        elasticities[label] = {
+            k: (relative_of * d / y if y != 0 else float("nan"))
+            for k, d, y in (
+                (k, d, result.objective if k == "objective" else optimum[k]) for k, d in row.items()
+            )
+        }
+    switching = {n for names_ in notes["withheld"].values() for n in names_}
+    notes["near_switch"] = [n for n in switches if n in switching]
     return {"derivatives": derivatives, "elasticities": elasticities, **notes}

@@ -343,7 +343,9 @@ class Result:
         history: per outer iteration, the objective and the KKT residual of the chosen start.
         starts: per start, its final design, objective, KKT residual and feasibility.
         fidelity: the halfshaft fidelity the optimiser ran at.
-        sensitivities: filled by [`sensitivities`][tripodjax.optimize.sensitivities].
+        sensitivities: ``None`` unless asked for: ``solve(spec, sensitivities=True)`` fills it
+            with [`sensitivities`][tripodjax.optimize.sensitivities]``(spec, result)`` when the
+            solve converged (derivatives of an unfinished point would be wrong).
     """
 
     design: dict
@@ -483,13 +485,17 @@ def _result(structure, values, out):
     )
 
 
-def solve(spec: Spec, progress: bool | ProgressMeter | None = None) -> Result:
+def solve(
+    spec: Spec, progress: bool | ProgressMeter | None = None, *, sensitivities: bool = False
+) -> Result:
     """Propose the joint design for a spec: the best of all starts. Returns a [`Result`][tripodjax.optimize.Result].
 
     ``progress``: ``None`` (a bar when standard error is a terminal), True/False, or a
     ``tripodjax.progress.ProgressMeter``. Deterministic for a given spec. Runs in
     float64 (scoped to the call). Compiled once per spec structure: solving a spec that
-    differs only in its numbers does not retrace.
+    differs only in its numbers does not retrace. With ``sensitivities=True`` a converged
+    result carries [`sensitivities`][tripodjax.optimize.sensitivities] of the optimum in
+    ``result.sensitivities`` (else that stays ``None``).
 
     Examples:
         >>> from tripodjax import optimize
@@ -497,7 +503,12 @@ def solve(spec: Spec, progress: bool | ProgressMeter | None = None) -> Result:
         >>> round(result.design["R"], 1), round(result.design["d_roller"], 1), result.converged
         (26.1, 41.4, True)
     """
-    return run(spec, [spec.values], progress)[0]
+    result = run(spec, [spec.values], progress)[0]
+    if sensitivities and result.converged:
+        from tripodjax.optimize.sensitivity import sensitivities as derivatives
+
+        result.sensitivities = derivatives(spec, result)
+    return result
 
 
 def _with(values, section, **changes):

@@ -142,6 +142,7 @@ max_R_over_d = 0.83
 # Among the cheapest settings (first solve: trace, compile and run) whose design lies within 0.1 %
 # of the newton / n_theta = 360 answer (python -m tripodjax.optimize.bench; analytic at 360 angles
 # costs the same and lands within 1e-9 of it); optimize-joint re-checks the design at full fidelity.
+# n_theta × starts × max_outer × inner_steps is at most 1.5e6: it bounds the work of one solve.
 fidelity = "newton"    # halfshaft kinematics: "newton" (exact) or "analytic" (cheap)
 n_theta = 168          # input angles per revolution for the kinematics (multiple of 6)
 starts = 4             # multi-start points (a deterministic grid over the bounds)
@@ -203,6 +204,12 @@ INTEGER_LIMITS = {
     "max_outer": (1, 200, ""),
     "inner_steps": (1, 200, ""),
 }
+# A solve evaluates the revolution's n_theta angles for each start max_outer · inner_steps times
+# (times the backtracks of each line search, at most MAX_BACKTRACKS + 1 = 31): the product bounds
+# its work. Measured on a 2-core CPU at 1.25 µs per angle and start, the worst case at MAX_WORK is
+# about a minute (the default spec, 168 × 4 × 25 × 30 = 5.04e5, about 20 s; typically 0.1 s).
+WORK_KEYS = ("n_theta", "starts", "max_outer", "inner_steps")
+MAX_WORK = 1.5e6
 MAX_LIST_LENGTH = 1000
 # Legacy keys that keep working (old name → new name).
 LEGACY_OBJECTIVE = {
@@ -265,6 +272,14 @@ class Structure:
         return used | {"static_capacity", "life_km"}
 
 
+# Internal value (section, key) in radians → its key in the file (a pair: a nested table), in degrees.
+_SPEC_UNITS = {
+    ("layout", "gamma0"): ("gamma0_deg", "deg"),
+    ("life", "condition_angle"): (("conditions", "angle_deg"), "deg"),
+    ("life", "condition_share"): (("conditions", "share"), None),
+}
+
+
 def _flatten_spec(spec):
     return (spec.values,), spec.structure
 
@@ -290,8 +305,31 @@ class Spec:
     values: dict
     resolved: dict = dataclasses.field(default=None, compare=False)
 
-    def __getitem__(self, section):
-        return self.values[section]
+    def __getitem__(self, section: str) -> dict:
+        """The numbers of one section in the spec file's own keys and units (a copy).
+
+        ``spec["layout"]`` is ``{"l": mm, "gamma0_deg": deg}``, ``spec["bounds"]["gamma0_deg"]``
+        is ``[lo, hi]`` in degrees and ``spec["life"]["conditions"]`` holds ``angle_deg`` and
+        ``share``: what a file says is what the view says, so bounds read here can be handed
+        to [`evaluate`][tripodjax.optimize.evaluate] as they are. The internal values (radians,
+        the traced pytree) are [`values`][tripodjax.optimize.Spec].
+        """
+        if section not in self.values:
+            raise KeyError(f"{section!r}; sections: {', '.join(self.values)}")
+        view = {}
+        for key, value in self.values[section].items():
+            name, to_spec = _SPEC_UNITS.get((section, key), (key, None))
+            value = np.array(value, np.float64)
+            if to_spec is not None or (section == "bounds" and key == "gamma0_deg"):
+                value = np.degrees(value)
+            value = float(value) if value.ndim == 0 else value
+            if isinstance(name, tuple):  # a nested table of the file, e.g. life.conditions
+                view.setdefault(name[0], {})[name[1]] = value
+            else:
+                view[name] = value
+        if section == "life" and "conditions" in view and self.structure.condition_names:
+            view["conditions"]["names"] = list(self.structure.condition_names)
+        return view
 
     def replace_values(self, **sections: Mapping) -> "Spec":
         """A copy with some numbers changed, e.g. ``spec.replace_values(loads={"M_max": 1200.0})``.
@@ -805,6 +843,14 @@ def _check(table):
                 f"unknown key solver.{key}; allowed here: {', '.join((*INTEGER_LIMITS, 'fidelity', 'tolerance'))}"
             )
     sizes = {k: _integer(table, k) for k in INTEGER_LIMITS}
+    work = math.prod(sizes[k] for k in WORK_KEYS)
+    if work > MAX_WORK:
+        product = " × ".join(f"solver.{k}" for k in WORK_KEYS)
+        numbers = " × ".join(str(sizes[k]) for k in WORK_KEYS)
+        raise SpecError(
+            f"{product} = {numbers} = {work:.3g} is not allowed: at most {MAX_WORK:.3g} "
+            "(the work of one solve); lower one of them"
+        )
     v["solver"] = {"tolerance": _number(table, "solver", "tolerance", 1e-12, 1e-1)}
     structure = Structure(
         free=tuple(k for k in VARIABLES if k in bounds),

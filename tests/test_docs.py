@@ -65,3 +65,30 @@ def test_snippets_run(path, tmp_path):
         timeout=600,
     )
     assert done.returncode == 0, f"a snippet of {name} failed:\n{done.stderr[-4000:]}"
+
+
+def _section(text, name):
+    """The text between a README's ``--8<-- [start:name]`` and ``[end:name]`` markers."""
+    start = text.index(f"<!-- --8<-- [start:{name}] -->")
+    return text[start : text.index(f"<!-- --8<-- [end:{name}] -->", start)]
+
+
+NUMBER = re.compile(r"\d+(?:\.\d+)?")
+
+
+def test_the_setup_paragraph_quotes_only_figures_of_the_latency_table():
+    """Every figure of the set-up paragraph is one that the optimiser bench put in its table."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    setup = FENCE.sub("", re.sub(r"```.*?```", "", _section(text, "setup"), flags=re.S))
+    setup = re.sub(r"<!--.*?-->", "", setup)
+    prose = re.sub(r"Python ≥ \d+\.\d+|\d+-core", "", setup)  # a requirement, a machine
+    prose = re.sub(r"`[^`]*`", "", prose)  # commands, paths and options
+    table = "\n".join(
+        line for line in _section(text, "optimiser-speed").splitlines() if line.startswith("|")
+    )
+    measured = set(NUMBER.findall(table))
+    quoted = NUMBER.findall(prose)
+    assert quoted, "the set-up paragraph states no timing"
+    assert set(quoted) <= measured, f"figures not in the latency table: {set(quoted) - measured}"
+    # A duration in words ("about a minute") is a figure no bench measured.
+    assert not re.search(r"\b(minutes?|hours?|seconds)\b", prose), prose
