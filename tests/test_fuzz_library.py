@@ -475,14 +475,16 @@ def test_layout_beyond_r_over_l_raises(R, ratio, gamma0):
 )
 def test_sweep_outputs_must_be_a_sequence_of_names(outputs):
     _assert_rejected(
-        lambda: tj.sweep(_layouts(2), n_theta=36, torque=100.0, outputs=outputs), "outputs", outputs
+        lambda: tj.sweep(_layouts(2), n_theta=36, gaf=tj.GAFInputs(100.0), outputs=outputs),
+        "outputs",
+        outputs,
     )
 
 
 @pytest.mark.parametrize("torque", [math.nan, -1.0, math.inf, "100", True, [100.0, math.nan]])
 def test_sweep_torque_is_checked_like_gaf_halfshaft(torque):
     _assert_rejected(
-        lambda: tj.sweep(_layouts(2), n_theta=36, torque=torque, outputs=("gaf_rms",)),
+        lambda: tj.sweep(_layouts(2), n_theta=36, gaf=tj.GAFInputs(torque), outputs=("gaf_rms",)),
         "torque",
         torque,
     )

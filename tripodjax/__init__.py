@@ -24,13 +24,14 @@ Nothing here changes JAX's global configuration: enable float64 yourself with
 import importlib.metadata
 
 from tripodjax import catalogue, friction, hertz, joint, progress, solvers
+from tripodjax.friction import GAFInputs
 from tripodjax.halfshaft import HalfshaftSolution, solve_halfshaft
 from tripodjax.kinematics import KinematicMetrics, kinematic_metrics
 from tripodjax.layout import TABLE_2_1, Layout, seed_case
 from tripodjax.motion import JointMotion, first_order_motion, halfshaft_motion
 from tripodjax.results import RESULTS
 from tripodjax.solvers import Analytic, ClosedForm, Newton, SolverError
-from tripodjax.sweep import sweep
+from tripodjax.sweep import map_chunks, sweep
 
 try:  # one version: the installed metadata, which pyproject.toml takes from tripodjax/_version.py
     __version__ = importlib.metadata.version("tripodjax")
@@ -41,6 +42,7 @@ __all__ = [
     "RESULTS",
     "Analytic",
     "ClosedForm",
+    "GAFInputs",
     "Newton",
     "SolverError",
     "progress",
@@ -57,6 +59,7 @@ __all__ = [
     "hertz",
     "joint",
     "kinematic_metrics",
+    "map_chunks",
     "seed_case",
     "solve_halfshaft",
     "sweep",

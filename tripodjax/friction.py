@@ -17,6 +17,7 @@ The roller angle θ of the fits is the Lee model's: a roller moves inward for
 Units: torque N·m, R mm (GAF = 2000 T_d Σ μ / (3 R) in N), angles rad.
 """
 
+import dataclasses
 import functools
 import math
 from typing import Any
@@ -311,20 +312,62 @@ class GAFResult:
     result: jax.Array
 
 
+@dataclasses.dataclass(frozen=True)
+class GAFInputs:
+    """What a GAF over a revolution needs besides the kinematics, as one object (for [`sweep`][tripodjax.sweep.sweep]).
+
+    Attributes:
+        torque: joint torque T_d [N·m], finite and ≥ 0 (a number or an array
+            that broadcasts against the batch).
+        params: [`FrictionParams`][tripodjax.friction.FrictionParams] (default grease A).
+        model: ``"stroke"`` (default) or ``"printed"``, see [`gaf`][tripodjax.friction.gaf].
+        width: smoothing width of the stroke model [–], > 0.
+
+    A pytree: ``torque``, ``params`` and ``width`` are leaves (traced,
+    differentiable), ``model`` is static. Checked at construction (the error
+    names the field); JAX's own rebuilding skips the checks.
+    """
+
+    torque: ArrayLike
+    params: FrictionParams = GREASE_A
+    model: str = "stroke"
+    width: ArrayLike = DEFAULT_STROKE_WIDTH
+
+    def __post_init__(self) -> None:
+        check_non_negative("torque", self.torque, " N·m")
+        _check_params(self.params)
+        _check_model(self.model, self.width)
+
+
+def _flatten_gaf_inputs(g):
+    return (g.torque, g.params, g.width), g.model
+
+
+def _unflatten_gaf_inputs(model, children):
+    obj = object.__new__(GAFInputs)  # no checks: JAX rebuilds with tracers and placeholders
+    for name, child in zip(("torque", "params", "width"), children, strict=True):
+        object.__setattr__(obj, name, child)
+    object.__setattr__(obj, "model", model)
+    return obj
+
+
+jax.tree_util.register_pytree_node(GAFInputs, _flatten_gaf_inputs, _unflatten_gaf_inputs)
+
+
 def gaf_from_revolution(
     layout: Layout,
     sol: HalfshaftSolution,
     rates: HalfshaftSolution,
-    torque: ArrayLike,
-    params: FrictionParams,
-    model: str,
-    width: ArrayLike,
+    inputs: GAFInputs,
 ) -> GAFResult:
     """GAF over a revolution from a halfshaft solution and its θ-rates (see [`gaf_halfshaft`][tripodjax.friction.gaf_halfshaft]).
 
     ``sol, rates`` come from [`revolution`][tripodjax.kinematics.revolution] with
-    ``with_rates=True``; no argument is checked here (it runs inside jit).
+    ``with_rates=True``; ``inputs``: a [`GAFInputs`][tripodjax.friction.GAFInputs]
+    (torque, friction constants, model, width). Nothing is checked here (it runs
+    inside jit).
     """
+    torque, params, model, width = inputs.torque, inputs.params, inputs.model, inputs.width
     dtype = sol.theta.dtype
     R, l, gamma0 = (jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0))
 
@@ -379,11 +422,11 @@ def gaf_halfshaft(
     solver = solvers.resolve_legacy(solver, fidelity)  # fidelity: the older spelling
     _check_n_theta(n_theta)
     return _gaf_halfshaft(
-        layout, torque, params, width, n_theta=n_theta, model=model, solver=solver
+        layout, GAFInputs(torque, params, model, width), n_theta=n_theta, solver=solver
     )
 
 
-@functools.partial(jax.jit, static_argnames=("n_theta", "model", "solver"))
-def _gaf_halfshaft(layout, torque, params, width, *, n_theta, model, solver):
+@functools.partial(jax.jit, static_argnames=("n_theta", "solver"))
+def _gaf_halfshaft(layout, inputs, *, n_theta, solver):
     sol, rates = revolution(layout, n_theta, solver, with_rates=True)
-    return gaf_from_revolution(layout, sol, rates, torque, params, model, width)
+    return gaf_from_revolution(layout, sol, rates, inputs)
