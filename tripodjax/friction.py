@@ -216,6 +216,55 @@ def _gaf_force(theta_i, gamma, stroke_rate_i, torque, R, params, model, width):
     return jnp.where(finite, force, jnp.nan)
 
 
+def _stroke_sum(sol, rates, R, l, gamma0, theta_lee, params, width):
+    """Σ_i tanh(s_i/width) |μ_dyn,i| of the stroke model over a revolution, from the small unknowns.
+
+    The rollers' stroke rates s_i = −(1/R) dZ_i/dθ (2.6.2) split into a part
+    whose three terms sum to zero exactly, a_i = d(tan γ cos ψ_i)/dθ, and a
+    common part c = d(tan γ sin²(γ/2) cos 3ψ − c_plunge/R)/dθ of second order.
+    At first order the three terms cancel (GAF ∝ γ0²), so where every
+    |s_i|/width < 1 the sum is formed as
+
+        (c Σ m_i + Σ a_i (m_i − |m_0|) + Σ s_i h_i m_i) / width,
+
+    with m_i = |m_0 + d |sin θ_i||, m_0 = μ_S/R, d = (γ°/15)(C_d1 μ_slp − C_d2)
+    (3.2.11) and tanh x = x (1 + h(x)): every term a product of small
+    quantities, no difference of nearly equal ones (float32 keeps it at
+    γ0 ~ 1e-9); elsewhere as Σ tanh(s_i/width) m_i directly.
+    """
+
+    def zero_sum(psi, gamma):  # Σ_i cos ψ_i = 0 for three rollers 120° apart
+        return jnp.tan(gamma)[..., None] * jnp.cos(joint.roller_angles(psi))
+
+    def common(psi, delta_gamma):
+        gamma, half = gamma0 + delta_gamma, 0.5 * delta_gamma
+        plunge = 2.0 * l * jnp.sin(gamma0 + half) * jnp.sin(half)  # l (cos γ0 − cos γ)
+        return jnp.tan(gamma) * jnp.sin(0.5 * gamma) ** 2 * jnp.cos(3.0 * psi) - plunge / R
+
+    _, a = jax.jvp(zero_sum, (sol.psi, sol.gamma), (rates.psi, rates.gamma))
+    _, c = jax.jvp(common, (sol.psi, sol.delta_gamma), (rates.psi, rates.delta_gamma))
+    gamma = sol.gamma[..., None]
+    m0 = mu_slip_to_roll(gamma, params)
+    d = _degrees(gamma) / 15.0 * (params.C_d1 * params.mu_slp - params.C_d2)
+    u = jnp.abs(jnp.sin(theta_lee))
+    inner = m0 + d * u  # μ_dyn of the inward stroke (3.2.11)
+    m = jnp.abs(inner)
+    sign0 = jnp.where(m0 >= 0.0, 1.0, -1.0)
+    dm = jnp.where(inner * sign0 >= 0.0, sign0 * d * u, m - jnp.abs(m0))  # m_i − |m_0|
+    s = a + c[..., None]
+    x = s / width
+    tanh = jnp.tanh(x)
+    x2 = x * x
+    series = x2 * (-1.0 / 3.0 + x2 * (2.0 / 15.0 - x2 * (17.0 / 315.0)))  # tanh(x)/x − 1
+    small_x = jnp.abs(x) < 1e-2
+    h = jnp.where(small_x, series, tanh / jnp.where(small_x, 1.0, x) - 1.0)
+    split = (
+        c * jnp.sum(m, axis=-1) + jnp.sum(a * dm, axis=-1) + jnp.sum(s * h * m, axis=-1)
+    ) / width
+    direct = jnp.sum(tanh * m, axis=-1)
+    return jnp.where(jnp.max(jnp.abs(x), axis=-1) < 1.0, split, direct)
+
+
 def _check_model(model, width):
     check_choice("model", model, GAF_MODELS)
     check_positive(width=width)
@@ -370,14 +419,13 @@ def gaf_from_revolution(
     torque, params, model, width = inputs.torque, inputs.params, inputs.model, inputs.width
     dtype = sol.theta.dtype
     R, l, gamma0 = (jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0))
-
-    def axial_positions(psi, gamma):
-        _, _, z_rel = joint.roller_centres(R, gamma, psi)
-        return joint.spider_offset(l, gamma0, gamma)[..., None] + z_rel
-
-    _, dz = jax.jvp(axial_positions, (sol.psi, sol.gamma), (rates.psi, rates.gamma))
     theta_lee = joint.roller_angles(sol.psi) + 0.5 * jnp.pi
-    force = _gaf_force(theta_lee, sol.gamma, -dz / R, torque, R, params, model, width)
+    if model == "printed":
+        force = _gaf_force(theta_lee, sol.gamma, None, torque, R, params, model, width)
+    else:
+        total = _stroke_sum(sol, rates, R, l, gamma0, theta_lee, params, width)
+        force = 2000.0 * torque / (3.0 * R) * total
+        force = jnp.where(jnp.isfinite(R) & jnp.isfinite(width), force, jnp.nan)
     rms = _safe_rms(force)
     return GAFResult(
         theta=sol.theta,
