@@ -523,6 +523,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="layouts of the per-output cost table (default: --layouts; 0 skips it)",
     )
     parser.add_argument(
+        "--cost-outputs",
+        default=None,
+        metavar="NAMES",
+        help="comma-separated outputs of the cost table (default: every sweep output)",
+    )
+    parser.add_argument(
         "--memory",
         type=int,
         default=0,
@@ -545,7 +551,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     cost_layouts = args.layouts if args.cost_layouts is None else args.cost_layouts
     if cost_layouts:
-        results["output_costs"] = output_costs(cost_layouts, args.n_theta, args.repeats)
+        names = args.cost_outputs.split(",") if args.cost_outputs else None
+        results["output_costs"] = output_costs(cost_layouts, args.n_theta, args.repeats, names)
     if args.memory:
         results["memory"] = memory_of_sweep(args.memory, args.n_theta)
     print(report(results))

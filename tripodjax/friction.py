@@ -24,6 +24,7 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax.typing import ArrayLike
 
 from tripodjax import joint, solvers
@@ -216,7 +217,7 @@ def _gaf_force(theta_i, gamma, stroke_rate_i, torque, R, params, model, width):
     return jnp.where(finite, force, jnp.nan)
 
 
-def _stroke_sum(sol, rates, R, l, gamma0, theta_lee, params, width):
+def _stroke_sum(sol, rates, R, l, gamma0, params, width):
     """Σ_i tanh(s_i/width) |μ_dyn,i| of the stroke model over a revolution, from the small unknowns.
 
     The rollers' stroke rates s_i = −(1/R) dZ_i/dθ (2.6.2) split into a part
@@ -233,20 +234,29 @@ def _stroke_sum(sol, rates, R, l, gamma0, theta_lee, params, width):
     γ0 ~ 1e-9); elsewhere as Σ tanh(s_i/width) m_i directly.
     """
 
+    offsets = np.asarray(joint.ROLLER_OFFSETS)
+    cos_k, sin_k = (jnp.asarray(f(offsets), sol.psi.dtype) for f in (np.cos, np.sin))
+
+    def cos_rollers(psi):  # cos ψ_i = cos(ψ + k·2π/3) from one sine–cosine pair
+        c, s = jnp.cos(psi)[..., None], jnp.sin(psi)[..., None]
+        return c * cos_k - s * sin_k
+
     def zero_sum(psi, gamma):  # Σ_i cos ψ_i = 0 for three rollers 120° apart
-        return jnp.tan(gamma)[..., None] * jnp.cos(joint.roller_angles(psi))
+        return jnp.tan(gamma)[..., None] * cos_rollers(psi)
 
     def common(psi, delta_gamma):
         gamma, half = gamma0 + delta_gamma, 0.5 * delta_gamma
         plunge = 2.0 * l * jnp.sin(gamma0 + half) * jnp.sin(half)  # l (cos γ0 − cos γ)
-        return jnp.tan(gamma) * jnp.sin(0.5 * gamma) ** 2 * jnp.cos(3.0 * psi) - plunge / R
+        cos_psi = jnp.cos(psi)
+        cos_3psi = cos_psi * (4.0 * cos_psi**2 - 3.0)
+        return jnp.tan(gamma) * jnp.sin(0.5 * gamma) ** 2 * cos_3psi - plunge / R
 
     _, a = jax.jvp(zero_sum, (sol.psi, sol.gamma), (rates.psi, rates.gamma))
     _, c = jax.jvp(common, (sol.psi, sol.delta_gamma), (rates.psi, rates.delta_gamma))
     gamma = sol.gamma[..., None]
     m0 = mu_slip_to_roll(gamma, params)
     d = _degrees(gamma) / 15.0 * (params.C_d1 * params.mu_slp - params.C_d2)
-    u = jnp.abs(jnp.sin(theta_lee))
+    u = jnp.abs(cos_rollers(sol.psi))  # |sin θ_i| with θ_i = ψ_i + 90°
     inner = m0 + d * u  # μ_dyn of the inward stroke (3.2.11)
     m = jnp.abs(inner)
     sign0 = jnp.where(m0 >= 0.0, 1.0, -1.0)
@@ -419,11 +429,11 @@ def gaf_from_revolution(
     torque, params, model, width = inputs.torque, inputs.params, inputs.model, inputs.width
     dtype = sol.theta.dtype
     R, l, gamma0 = (jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0))
-    theta_lee = joint.roller_angles(sol.psi) + 0.5 * jnp.pi
     if model == "printed":
+        theta_lee = joint.roller_angles(sol.psi) + 0.5 * jnp.pi
         force = _gaf_force(theta_lee, sol.gamma, None, torque, R, params, model, width)
     else:
-        total = _stroke_sum(sol, rates, R, l, gamma0, theta_lee, params, width)
+        total = _stroke_sum(sol, rates, R, l, gamma0, params, width)
         force = 2000.0 * torque / (3.0 * R) * total
         force = jnp.where(jnp.isfinite(R) & jnp.isfinite(width), force, jnp.nan)
     rms = _safe_rms(force)
