@@ -384,17 +384,20 @@ BOUNDARY = {
     ),
     "sweep": (
         tj.sweep,
-        dict(n_theta=36, torque=100.0, outputs=("delta_pp", "gaf_rms"), chunk_size=2),
+        dict(n_theta=36, outputs=("delta_pp", "gaf_rms"), chunk_size=2),
         {
-            "torque": "non_negative",
             "chunk_size": "count",
             "n_theta": "count",
-            "fidelity": "choice",
-            "gaf_model": "choice",
-            "gaf_width": "positive",
-            "friction_params": "object",
+            "solver": "choice",
+            "gaf": "object",
             "layouts": "object",
         },
+        "{}",
+    ),
+    "GAFInputs": (
+        tj.GAFInputs,
+        dict(torque=100.0),
+        {"torque": "non_negative", "model": "choice", "width": "positive", "params": "object"},
         "{}",
     ),
 }
@@ -407,6 +410,7 @@ _DEFAULT_OBJECTS = {
     "conditions": _conditions,
     "params": lambda: friction.GREASE_A,
     "friction_params": lambda: friction.GREASE_A,
+    "gaf": lambda: friction.GAFInputs(100.0),
 }
 
 CASES = [
