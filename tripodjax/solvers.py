@@ -97,11 +97,14 @@ class Analytic:
     (the interpolation's share; at every angle, ``nodes=None``: below 2e-6).
     One correction: irregularity 1.2e-3, delta_pp 3e-4, gamma_pp 3.8e-3,
     ecc_max 1.2e-3; the closed form alone: 4.2 %, 0.6 %, 23 %, 7.3 %.
-    Speed (``python -m tripodjax.bench``, 2-core CPU): 16–31× newton in the
-    same dtype, about the cost of the closed form.
+    Speed (``python -m tripodjax.bench``, 2-core CPU under load): 15–68× newton
+    in the same dtype for the four metrics, about 20× with
+    [`sweep`][tripodjax.sweep.sweep]'s default outputs (status included);
+    the README's cost table gives each output's cost.
 
     Every point carries an error estimate (the next Newton step with exact
-    sines, relative to the first-order amplitude e(γ0)/|h|), and points
+    sines, relative to the first-order amplitude e(γ0)/|h|; over a revolution
+    formed at the nodes and midway between them, see ``nodes``), and points
     whose estimate exceeds ``validity`` report ``RESULTS.outside_validity``.
 
     Attributes:
