@@ -84,7 +84,11 @@ def quantities(structure, values, design):
     h, loads = values["hertz"], values["loads"]
     q, codes, hertz_codes = {}, [], []
     if needs & set(KINEMATIC_QUANTITIES + GAF_QUANTITIES):
-        sol, rates = revolution(layout, structure.n_theta, structure.fidelity, with_rates=True)
+        # dΔ/dθ and dγ/dθ only for the quantities that use them (irregularity, GAF).
+        with_rates = bool(needs & {"irregularity", *GAF_QUANTITIES})
+        sol, rates = revolution(
+            layout, structure.n_theta, structure.fidelity, with_rates=with_rates
+        )
         # Metrics from the small unknowns (float32-accurate, one-sided slopes at γ0 = 0).
         names = {
             "irregularity": "irregularity",
@@ -101,15 +105,8 @@ def quantities(structure, values, design):
             q["gamma_ripple"] = jnp.degrees(q["gamma_ripple"])
         if needs & set(GAF_QUANTITIES):
             params = friction.GREASE_A.replace(lam=design["lam"], mu_slp=design["mu_slp"])
-            gaf = friction.gaf_from_revolution(
-                layout,
-                sol,
-                rates,
-                loads["gaf_torque"],
-                params,
-                structure.gaf_model,
-                friction.DEFAULT_STROKE_WIDTH,
-            )
+            inputs = friction.GAFInputs(loads["gaf_torque"], params, structure.gaf_model)
+            gaf = friction.gaf_from_revolution(layout, sol, rates, inputs)
             codes.append(gaf.result)
             q.update(gaf_rms=gaf.rms, gaf_peak=gaf.peak, gaf_third_order=gaf.third_order)
     if needs & {"static_capacity", "M_d", "M_sd"}:

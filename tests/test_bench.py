@@ -20,6 +20,8 @@ def test_bench_writes_its_figures(tmp_path):
             "1",
             "--domain-layouts",
             "64",
+            "--cost-outputs",
+            "delta_pp,result,gaf_rms",
             "--json",
             str(out),
         ],
@@ -48,6 +50,14 @@ def test_bench_writes_its_figures(tmp_path):
     assert analytic["errors_vs_newton_float64"]["irregularity"] < 0.01
     assert analytic["domain_errors_vs_newton_float64"]["gamma_pp"] < 0.05
     assert analytic["domain_max_error_estimate"] < 0.01
+    limit = figures["transcendental_limit"]
+    assert limit["sines_per_s"] > 0 and limit["newton_loop_iterations"] >= 1
+    assert limit["transcendentals_per_solved_angle"] == 4 * limit["newton_loop_iterations"] + 4
+    costs = figures["output_costs"]
+    for level in ("newton", "analytic", "closed_form"):
+        assert costs[level]["default"] > 0
+        assert set(costs[level]["outputs"]) == {"delta_pp", "result", "gaf_rms"}
+    assert "cost of each output alone" in result.stdout and "*delta_pp" in result.stdout
     assert (
         "× newton" in result.stdout
         and "× NumPy" in result.stdout

@@ -291,3 +291,52 @@ def test_gaf_result_carries_the_kinematic_status():
     assert int(ok.result) == RESULTS.successful
     capped = friction.gaf_halfshaft(seed_case("g25"), 800.0, n_theta=60, solver=Newton(max_steps=1))
     assert int(capped.result) == RESULTS.max_steps_reached
+
+
+def _log_uniform_layouts(n, seed, dtype):
+    """R/l log-uniform 1e-5…0.2, l 1…1e5 mm, γ0 log-uniform 1e-9…π/4 rad (the metrics' edge set)."""
+    rng = np.random.default_rng(seed)
+    ratio = np.exp(rng.uniform(np.log(1e-5), np.log(0.2), n))
+    gamma0 = np.exp(rng.uniform(np.log(1e-9), np.log(np.pi / 4), n))
+    l = np.exp(rng.uniform(np.log(1.0), np.log(1e5), n))
+    ratio[0], gamma0[0], gamma0[1] = 0.2, np.pi / 4, 1e-9
+    return [np.asarray(a, dtype) for a in (ratio * l, l, gamma0)]
+
+
+@pytest.mark.parametrize(
+    "params",
+    [friction.GREASE_A, friction.GREASE_A.replace(mu_slp=0.01, lam=0.0)],  # C_d1 μ_slp < C_d2 too
+)
+def test_float32_gaf_within_1e_3_of_float64_down_to_gamma0_1e_9(float32_default, params):
+    """Stroke model from the small unknowns (its three terms cancel at first order), printed model too."""
+    from tripodjax import GAFInputs, sweep
+
+    names = ("gaf_rms", "gaf_peak", "gaf_third_order")
+    R, l, gamma0 = _log_uniform_layouts(200, seed=21, dtype=np.float32)
+    for model in ("stroke", "printed"):
+        gaf = GAFInputs(500.0, params, model)
+        out32 = sweep(Layout(R, l, gamma0), n_theta=120, outputs=names, gaf=gaf)
+        assert out32["gaf_rms"].dtype == np.float32
+        with jax.enable_x64(True):
+            # float32's roundings of the bounds: clipped onto them for float64 (a ~1e-7 change)
+            R64, l64, g64 = (np.asarray(a, np.float64) for a in (R, l, gamma0))
+            layouts64 = Layout(np.minimum(R64, 0.2 * l64), l64, np.minimum(g64, np.pi / 4))
+            out64 = sweep(layouts64, n_theta=120, outputs=names, gaf=gaf)
+        for name in names:
+            error = np.abs(out32[name] / out64[name] - 1)
+            assert error.max() < 1e-3, (model, name, float(error.max()))
+        assert np.all(out64["gaf_rms"] > 0)
+
+
+def test_stroke_gaf_vanishes_like_gamma0_squared():
+    """GAF ∝ γ0² at small γ0 (the first order cancels between the rollers), in float32 as in float64."""
+    for dtype in (np.float64, np.float32):
+        rms = [
+            float(
+                friction.gaf_halfshaft(
+                    Layout(*np.asarray([25.0, 500.0, g], dtype)), 500.0, model="stroke", n_theta=60
+                ).rms
+            )
+            for g in (1e-8, 1e-7)
+        ]
+        assert rms[1] / rms[0] == pytest.approx(100.0, rel=1e-3), dtype

@@ -413,17 +413,20 @@ BOUNDARY = {
     ),
     "sweep": (
         tj.sweep,
-        dict(n_theta=36, torque=100.0, outputs=("delta_pp", "gaf_rms"), chunk_size=2),
+        dict(n_theta=36, outputs=("delta_pp", "gaf_rms"), chunk_size=2),
         {
-            "torque": "non_negative",
             "chunk_size": "count",
             "n_theta": "count",
-            "fidelity": "choice",
-            "gaf_model": "choice",
-            "gaf_width": "positive",
-            "friction_params": "object",
+            "solver": "choice",
+            "gaf": "object",
             "layouts": "object",
         },
+        "{}",
+    ),
+    "GAFInputs": (
+        tj.GAFInputs,
+        dict(torque=100.0),
+        {"torque": "non_negative", "model": "choice", "width": "positive", "params": "object"},
         "{}",
     ),
 }
@@ -436,6 +439,7 @@ _DEFAULT_OBJECTS = {
     "conditions": _conditions,
     "params": lambda: friction.GREASE_A,
     "friction_params": lambda: friction.GREASE_A,
+    "gaf": lambda: friction.GAFInputs(100.0),
 }
 
 CASES = [
@@ -582,14 +586,16 @@ def test_layout_beyond_r_over_l_raises(R, ratio, gamma0):
 )
 def test_sweep_outputs_must_be_a_sequence_of_names(outputs):
     _assert_rejected(
-        lambda: tj.sweep(_layouts(2), n_theta=36, torque=100.0, outputs=outputs), "outputs", outputs
+        lambda: tj.sweep(_layouts(2), n_theta=36, gaf=tj.GAFInputs(100.0), outputs=outputs),
+        "outputs",
+        outputs,
     )
 
 
 @pytest.mark.parametrize("torque", [math.nan, -1.0, math.inf, "100", True, [100.0, math.nan]])
 def test_sweep_torque_is_checked_like_gaf_halfshaft(torque):
     _assert_rejected(
-        lambda: tj.sweep(_layouts(2), n_theta=36, torque=torque, outputs=("gaf_rms",)),
+        lambda: tj.sweep(_layouts(2), n_theta=36, gaf=tj.GAFInputs(torque), outputs=("gaf_rms",)),
         "torque",
         torque,
     )

@@ -206,7 +206,7 @@ def test_solver_objects_are_hashable_and_shorthands_resolve_to_defaults():
     )
     assert solvers.resolve("analytic") == Analytic()
     assert solvers.resolve("closed_form") == Analytic(
-        corrections=0, validity=solvers.ClosedForm().validity, nodes=None
+        corrections=0, validity=solvers.ClosedForm().validity, nodes=8
     )
     a = solve_halfshaft(seed_case("N"), THETA, Newton(rtol=1e-10, max_steps=30))
     b = solve_halfshaft(seed_case("N"), THETA)

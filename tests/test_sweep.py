@@ -11,11 +11,12 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from tripodjax import Layout, friction, kinematic_metrics, sweep
+from tripodjax import Layout, friction, kinematic_metrics, solvers, sweep
 from tripodjax.bench import domain_layouts, numpy_newton_metrics, random_layouts
 from tripodjax.halfshaft import analytic_halfshaft, solve_halfshaft, trigonometric_interpolation
 from tripodjax.results import RESULTS
 from tripodjax.solvers import Analytic, Newton, SolverError
+from tripodjax.sweep import DEFAULT_OUTPUTS, REMOVED_KEYWORDS, map_chunks
 
 
 def layouts(n, seed=0, dtype=np.float64):
@@ -50,7 +51,9 @@ def test_chunking_does_not_change_results():
 
 def test_gaf_outputs_match_gaf_halfshaft():
     batch = layouts(3)
-    result = sweep(batch, outputs=("gaf_rms", "gaf_third_order"), torque=800.0, gaf_model="stroke")
+    result = sweep(
+        batch, outputs=("gaf_rms", "gaf_third_order"), gaf=friction.GAFInputs(800.0, model="stroke")
+    )
     for i in range(3):
         one = friction.gaf_halfshaft(
             Layout(float(batch.R[i]), float(batch.l[i]), float(batch.gamma0[i])),
@@ -72,6 +75,34 @@ def test_newton_controls_are_passed_through_and_counted():
     assert sweep(batch, outputs=("irregularity",)).result_counts is None
     with pytest.raises(SolverError, match="sweep: layout 0, point"):
         sweep(batch, solver=Newton(max_steps=1), outputs=("irregularity",), throw=True)
+
+
+@pytest.mark.parametrize(
+    "solver, bounds",
+    [
+        # the documented whole-domain errors (delta_pp, irregularity, gamma_pp, ecc_max), 1.5×
+        ("analytic", (7.5e-6, 2e-5, 1.7e-6, 6e-7)),
+        ("closed_form", (0.009, 0.063, 0.35, 0.11)),
+    ],
+)
+def test_default_outputs_keep_each_levels_accuracy(solver, bounds):
+    """The default outputs (status included) are the values each output has alone, as accurate as documented."""
+    R, l, g = domain_layouts(300, seed=4)
+    batch = Layout(R, l, g)
+    newton = sweep(batch)
+    fast = sweep(batch, solver=solver)
+    assert tuple(fast) == DEFAULT_OUTPUTS
+    keep = g > 0
+    for name, bound in zip(
+        ("delta_pp", "irregularity", "gamma_pp", "ecc_max"), bounds, strict=True
+    ):
+        alone = sweep(batch, solver=solver, outputs=(name,))[name]
+        np.testing.assert_array_equal(fast[name], alone, err_msg=name)
+        error = np.max(np.abs(fast[name][keep] / newton[name][keep] - 1))
+        assert error < bound, (name, error)
+    assert fast["converged"].all() and fast.result_counts["successful"] == 300
+    estimate = sweep(batch, solver=solver, outputs=("error_estimate",))["error_estimate"]
+    assert np.all(estimate < solvers.resolve(solver).validity) and np.all(estimate > 0)
 
 
 @pytest.mark.parametrize(
@@ -247,27 +278,87 @@ def _unchecked(R, l, gamma0):
             {},
             "1-D arrays of one length",
         ),
-        (lambda: layouts(2), {"outputs": ("irregularity", "gaf_rms")}, "need a torque"),
+        (lambda: layouts(2), {"outputs": ("irregularity", "gaf_rms")}, "need gaf=GAFInputs"),
         (lambda: layouts(2), {"outputs": ("speed",)}, "not allowed; allowed: delta_pp"),
         (
             lambda: layouts(2),
             {"solver": "exact"},
             "solver = 'exact' is not allowed; allowed: 'newton', 'analytic', 'closed_form'",
         ),
-        (lambda: layouts(2), {"torque": float("nan"), "outputs": ("gaf_rms",)}, "torque = nan"),
-        (lambda: layouts(2), {"torque": -1.0, "outputs": ("gaf_rms",)}, "torque = -1.0 is outside"),
         (lambda: layouts(2), {"chunk_size": 0}, "chunk_size = 0 is outside the allowed range"),
         (lambda: layouts(2), {"chunk_size": -1}, "chunk_size = -1 is outside the allowed range"),
-        (lambda: layouts(2), {"gaf_model": "smooth"}, "gaf_model = 'smooth' is not allowed"),
         (lambda: layouts(2), {"n_theta": 100}, "n_theta = 100 is not allowed"),
     ],
 )
 def test_bad_inputs(build, kwargs, message):
-    if "gaf_model" in kwargs:
-        kwargs = {**kwargs, "torque": 100.0}
     with pytest.raises(ValueError) as info:
         sweep(build(), **kwargs)
     assert message in str(info.value)
+
+
+@pytest.mark.parametrize("name", sorted(REMOVED_KEYWORDS))
+def test_removed_keywords_name_their_replacement(name):
+    with pytest.raises(TypeError) as info:
+        sweep(layouts(2), **{name: 1.0})
+    message = str(info.value)
+    assert f"{name}= was removed; use" in message and "\n" not in message
+    assert (
+        "solver=" if name in ("fidelity", "rtol", "max_steps") else "gaf=tj.GAFInputs"
+    ) in message
+    with pytest.raises(TypeError, match="unexpected keyword argument 'speed'"):
+        sweep(layouts(2), speed=1.0)
+
+
+@pytest.mark.parametrize(
+    "kwargs, error, message",
+    [
+        ({"torque": float("nan")}, ValueError, "torque = nan"),
+        ({"torque": -1.0}, ValueError, "torque = -1.0 is outside"),
+        ({"torque": 1.0, "model": "smooth"}, ValueError, "model = 'smooth' is not allowed"),
+        ({"torque": 1.0, "width": 0.0}, ValueError, "width = 0.0"),
+        ({"torque": 1.0, "params": 0.06}, TypeError, "params = 0.06"),
+    ],
+)
+def test_gaf_inputs_are_checked_at_construction(kwargs, error, message):
+    with pytest.raises(error) as info:
+        friction.GAFInputs(**kwargs)
+    assert message in str(info.value)
+    with pytest.raises(TypeError, match="gaf = 800.0 is not allowed"):
+        sweep(layouts(2), outputs=("gaf_rms",), gaf=800.0)
+
+
+def test_gaf_inputs_are_a_pytree_with_a_static_model():
+    inputs = friction.GAFInputs(500.0, friction.GREASE_B, "printed", 0.02)
+    leaves, treedef = jax.tree_util.tree_flatten(inputs)
+    assert len(leaves) == 2 + len(jax.tree_util.tree_leaves(friction.GREASE_B))
+    rebuilt = jax.tree_util.tree_unflatten(treedef, leaves)
+    assert rebuilt.model == "printed" and rebuilt.width == 0.02
+    layout = Layout(25.0, 500.0, 0.35)
+    grad = jax.grad(
+        lambda g: friction.gaf_halfshaft(layout, g.torque, g.params, 60, g.model, g.width).rms
+    )(inputs)
+    assert float(grad.torque) > 0 and grad.model == "printed"
+
+
+def test_map_chunks_evaluates_rows_in_padded_chunks():
+    rows = {"a": np.arange(11.0), "b": np.arange(22.0).reshape(11, 2)}
+    calls = []
+
+    @jax.jit
+    def fn(part):
+        calls.append(part["a"].shape)  # traced once per shape
+        return {"sum": part["a"] + part["b"].sum(axis=1), "pair": part["b"] * 2}
+
+    out = map_chunks(fn, rows, 4)
+    np.testing.assert_array_equal(out["sum"], rows["a"] + rows["b"].sum(axis=1))
+    np.testing.assert_array_equal(out["pair"], rows["b"] * 2)
+    assert calls == [(4,)]  # three chunks, the last padded: one compiled shape
+    empty = map_chunks(fn, {"a": np.zeros(0), "b": np.zeros((0, 2))}, 4)
+    assert empty["sum"].shape == (0,) and empty["pair"].shape == (0, 2)
+    with pytest.raises(ValueError, match="share one leading length"):
+        map_chunks(fn, {"a": np.zeros(3), "b": np.zeros((4, 2))}, 4)
+    with pytest.raises(ValueError, match="chunk_size = 0"):
+        map_chunks(fn, rows, 0)
 
 
 @pytest.mark.parametrize(
@@ -304,8 +395,9 @@ def test_sharded_sweep_equals_one_device_sweep():
         from tripodjax.bench import random_layouts
         lay = tj.Layout(*random_layouts(37, seed=9))
         names = ("delta_pp", "irregularity", "gamma_pp", "gaf_rms")
-        many = tj.sweep(lay, outputs=names, torque=500.0, chunk_size=16)
-        one = tj.sweep(lay, outputs=names, torque=500.0, chunk_size=16, devices=jax.devices()[:1])
+        gaf = tj.GAFInputs(500.0)
+        many = tj.sweep(lay, outputs=names, gaf=gaf, chunk_size=16)
+        one = tj.sweep(lay, outputs=names, gaf=gaf, chunk_size=16, devices=jax.devices()[:1])
         print(json.dumps({"devices": len(jax.devices()), "diff": max(float(np.max(np.abs(many[n] - one[n]) / np.abs(one[n]))) for n in names)}))
         """
     )

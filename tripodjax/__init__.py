@@ -48,6 +48,8 @@ _ATTRIBUTES = {
     "first_order_motion": "tripodjax.motion",
     "halfshaft_motion": "tripodjax.motion",
     "sweep": "tripodjax.sweep",
+    "map_chunks": "tripodjax.sweep",
+    "GAFInputs": "tripodjax.friction",
 }
 _SUBMODULES = (
     "catalogue",
@@ -67,13 +69,14 @@ _SUBMODULES = (
 
 if typing.TYPE_CHECKING:  # what the lazy attributes are, for type checkers and the docs
     from tripodjax import catalogue, friction, hertz, joint, life, progress, solvers, vehicle
+    from tripodjax.friction import GAFInputs
     from tripodjax.halfshaft import HalfshaftSolution, solve_halfshaft
     from tripodjax.kinematics import KinematicMetrics, kinematic_metrics
     from tripodjax.layout import TABLE_2_1, Layout, seed_case
     from tripodjax.motion import JointMotion, first_order_motion, halfshaft_motion
     from tripodjax.results import RESULTS
     from tripodjax.solvers import Analytic, ClosedForm, Newton, SolverError
-    from tripodjax.sweep import sweep
+    from tripodjax.sweep import map_chunks, sweep
 
     __version__: str
 
@@ -124,6 +127,7 @@ __all__ = [
     "RESULTS",
     "Analytic",
     "ClosedForm",
+    "GAFInputs",
     "Newton",
     "SolverError",
     "progress",
@@ -141,6 +145,7 @@ __all__ = [
     "joint",
     "life",
     "kinematic_metrics",
+    "map_chunks",
     "seed_case",
     "solve_halfshaft",
     "sweep",

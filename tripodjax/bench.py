@@ -159,6 +159,39 @@ def fsolve_metrics(
     return {name: np.array(values) for name, values in out.items()}
 
 
+# --------------------------------------------------------------------------- the machine's limit
+
+# Transcendental functions per Newton iteration of one angle: the sine and cosine of Δ/2 and of
+# (γ − γ0)/2 (scaled_system); the θ-rate by the implicit function theorem needs the Jacobian at the
+# solution once more (another four).
+TRANSCENDENTALS_PER_ITERATION = 4
+TRANSCENDENTALS_FOR_RATES = 4
+
+
+def sine_rate(dtype: Any = np.float64, n: int = 2**18, repeats: int = 5) -> float:
+    """XLA's float64 sines per second on this machine: jnp.sin over a cache-sized array (a sweep chunk)."""
+    import jax
+    import jax.numpy as jnp
+
+    x = jax.device_put(np.linspace(-3.0, 3.0, n).astype(dtype))
+    sine = jax.jit(jnp.sin)
+    seconds = _best_time(lambda: jax.block_until_ready(sine(x)), repeats)
+    return n / seconds
+
+
+def newton_loop_iterations(layouts: Any, n_theta: int) -> int:
+    """Iterations the Newton loop runs for a chunk: the largest any angle of the set needs."""
+    import jax
+    import jax.numpy as jnp
+
+    from tripodjax.kinematics import revolution
+
+    def most(layout):
+        return jnp.max(revolution(layout, n_theta, "newton", with_rates=False)[0].iterations)
+
+    return int(jnp.max(jax.jit(jax.vmap(most))(layouts)))
+
+
 # --------------------------------------------------------------------------- measurements
 
 
@@ -246,6 +279,18 @@ def run(
         newton = results["variants"]["newton/" + name.split("/")[1]]
         entry["speedup_vs_newton_same_dtype"] = newton["seconds"] / entry["seconds"]
 
+    rate = sine_rate()
+    iterations = newton_loop_iterations(layouts(np.float64), n_theta)
+    per_angle = TRANSCENDENTALS_PER_ITERATION * iterations + TRANSCENDENTALS_FOR_RATES
+    newton_rate = results["variants"]["newton/float64"]["points_per_s"]
+    results["transcendental_limit"] = {
+        "sines_per_s": rate,
+        "newton_loop_iterations": iterations,
+        "transcendentals_per_solved_angle": per_angle,
+        "limit_points_per_s": rate / per_angle,
+        "newton_fraction_of_limit": newton_rate * per_angle / rate,
+    }
+
     holder = {}
     numpy_seconds = _best_time(
         lambda: holder.update(r=numpy_newton_metrics(R, l, g0, n_theta)), repeats
@@ -288,6 +333,38 @@ def run(
         "ratio": t_gradient / t_forward,
     }
     return results
+
+
+def output_costs(
+    n_layouts: int = 20000,
+    n_theta: int = 360,
+    repeats: int = 3,
+    outputs: Sequence[str] | None = None,
+) -> dict[str, Any]:
+    """Seconds of ``sweep`` per level (float64) for the default outputs and for each output alone.
+
+    Returns {level: {"default": s, "outputs": {name: s}}}; an output's share of the
+    default set is its time alone over the default set's time.
+    """
+    import tripodjax as tj
+    from tripodjax.sweep import DEFAULT_OUTPUTS, OUTPUTS
+
+    layouts = tj.Layout(*random_layouts(n_layouts))
+    gaf = tj.GAFInputs(500.0)
+    names = tuple(outputs) if outputs is not None else OUTPUTS
+    costs: dict[str, Any] = {"layouts": n_layouts, "default_outputs": list(DEFAULT_OUTPUTS)}
+    for solver in SOLVERS:
+
+        def timed(selected, solver=solver):
+            return _best_time(
+                lambda: tj.sweep(layouts, n_theta, solver, selected, gaf=gaf), repeats
+            )
+
+        costs[solver] = {
+            "default": timed(DEFAULT_OUTPUTS),
+            "outputs": {name: timed((name,)) for name in names},
+        }
+    return costs
 
 
 def memory_of_sweep(n_layouts: int, n_theta: int = 360) -> dict[str, Any]:
@@ -346,6 +423,15 @@ def report(results: dict[str, Any]) -> str:
             f"gamma_pp {e['gamma_pp']:.1e}  ecc_max {e['ecc_max']:.1e}  "
             f"largest error estimate {r['domain_max_error_estimate']:.1e}"
         )
+    t = results["transcendental_limit"]
+    lines.append(
+        f"XLA float64 sines: {t['sines_per_s']:.3g}/s; a Newton angle needs "
+        f"{t['transcendentals_per_solved_angle']} ({t['newton_loop_iterations']} iterations × 4 + 4 "
+        f"for dψ/dθ): limit {t['limit_points_per_s']:.3g} points/s, newton/float64 reaches "
+        f"{100 * t['newton_fraction_of_limit']:.0f} %"
+    )
+    if "output_costs" in results:
+        lines.extend(cost_table(results["output_costs"], results["n_theta"]))
     g = results["gradient_to_forward"]
     lines.append(
         f"gradient (R, l, γ0) / forward cost, newton float64, {g['layouts']} layouts: {g['ratio']:.2f}"
@@ -360,6 +446,39 @@ def report(results: dict[str, Any]) -> str:
         "(the timed set: R 18–42 mm, l 300–800 mm, γ0 5–25°)"
     )
     return "\n".join(lines)
+
+
+def cost_table(costs: dict[str, Any], n_theta: int) -> list[str]:
+    """The per-output cost table: ms per sweep, and the share of the default set, per level."""
+    levels = [level for level in SOLVERS if level in costs]
+    head = f"{'output (sweep, float64)':<24}" + "".join(
+        f" {level + ' ms':>15} {'share':>6}" for level in levels
+    )
+    lines = [
+        f"cost of each output alone, {costs['layouts']} layouts × {n_theta} angles "
+        "(share: of the default set's time)",
+        head,
+    ]
+    default = {level: costs[level]["default"] for level in levels}
+    row = f"{'default outputs':<24}" + "".join(
+        f" {1e3 * default[level]:>15.1f} {'1':>6}" for level in levels
+    )
+    lines.append(row)
+    for name in costs[levels[0]]["outputs"]:
+        cells = "".join(
+            f" {1e3 * costs[level]['outputs'][name]:>15.1f} "
+            f"{costs[level]['outputs'][name] / default[level]:>6.2f}"
+            for level in levels
+        )
+        mark = "*" if name in costs["default_outputs"] else " "
+        lines.append(f"{mark}{name:<23}{cells}")
+    ratios = "; ".join(
+        f"{level} {default['newton'] / default[level]:.1f}× newton"
+        for level in levels
+        if level != "newton"
+    )
+    lines.append(f"default outputs (* in the default set): {ratios}")
+    return lines
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -397,6 +516,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="layouts of the whole-domain accuracy check (default 2000)",
     )
     parser.add_argument(
+        "--cost-layouts",
+        type=int,
+        default=None,
+        metavar="N",
+        help="layouts of the per-output cost table (default: --layouts; 0 skips it)",
+    )
+    parser.add_argument(
+        "--cost-outputs",
+        default=None,
+        metavar="NAMES",
+        help="comma-separated outputs of the cost table (default: every sweep output)",
+    )
+    parser.add_argument(
         "--memory",
         type=int,
         default=0,
@@ -417,6 +549,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     results = run(
         args.layouts, args.n_theta, args.fsolve_layouts, args.repeats, domain_n=args.domain_layouts
     )
+    cost_layouts = args.layouts if args.cost_layouts is None else args.cost_layouts
+    if cost_layouts:
+        names = args.cost_outputs.split(",") if args.cost_outputs else None
+        results["output_costs"] = output_costs(cost_layouts, args.n_theta, args.repeats, names)
     if args.memory:
         results["memory"] = memory_of_sweep(args.memory, args.n_theta)
     print(report(results))

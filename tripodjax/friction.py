@@ -17,12 +17,14 @@ The roller angle θ of the fits is the Lee model's: a roller moves inward for
 Units: torque N·m, R mm (GAF = 2000 T_d Σ μ / (3 R) in N), angles rad.
 """
 
+import dataclasses
 import functools
 import math
 from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax.typing import ArrayLike
 
 from tripodjax import joint, solvers
@@ -215,6 +217,64 @@ def _gaf_force(theta_i, gamma, stroke_rate_i, torque, R, params, model, width):
     return jnp.where(finite, force, jnp.nan)
 
 
+def _stroke_sum(sol, rates, R, l, gamma0, params, width):
+    """Σ_i tanh(s_i/width) |μ_dyn,i| of the stroke model over a revolution, from the small unknowns.
+
+    The rollers' stroke rates s_i = −(1/R) dZ_i/dθ (2.6.2) split into a part
+    whose three terms sum to zero exactly, a_i = d(tan γ cos ψ_i)/dθ, and a
+    common part c = d(tan γ sin²(γ/2) cos 3ψ − c_plunge/R)/dθ of second order.
+    At first order the three terms cancel (GAF ∝ γ0²), so where every
+    |s_i|/width < 1 the sum is formed as
+
+        (c Σ m_i + Σ a_i (m_i − |m_0|) + Σ s_i h_i m_i) / width,
+
+    with m_i = |m_0 + d |sin θ_i||, m_0 = μ_S/R, d = (γ°/15)(C_d1 μ_slp − C_d2)
+    (3.2.11) and tanh x = x (1 + h(x)): every term a product of small
+    quantities, no difference of nearly equal ones (float32 keeps it at
+    γ0 ~ 1e-9); elsewhere as Σ tanh(s_i/width) m_i directly.
+    """
+
+    offsets = np.asarray(joint.ROLLER_OFFSETS)
+    cos_k, sin_k = (jnp.asarray(f(offsets), sol.psi.dtype) for f in (np.cos, np.sin))
+
+    def cos_rollers(psi):  # cos ψ_i = cos(ψ + k·2π/3) from one sine–cosine pair
+        c, s = jnp.cos(psi)[..., None], jnp.sin(psi)[..., None]
+        return c * cos_k - s * sin_k
+
+    def zero_sum(psi, gamma):  # Σ_i cos ψ_i = 0 for three rollers 120° apart
+        return jnp.tan(gamma)[..., None] * cos_rollers(psi)
+
+    def common(psi, delta_gamma):
+        gamma, half = gamma0 + delta_gamma, 0.5 * delta_gamma
+        plunge = 2.0 * l * jnp.sin(gamma0 + half) * jnp.sin(half)  # l (cos γ0 − cos γ)
+        cos_psi = jnp.cos(psi)
+        cos_3psi = cos_psi * (4.0 * cos_psi**2 - 3.0)
+        return jnp.tan(gamma) * jnp.sin(0.5 * gamma) ** 2 * cos_3psi - plunge / R
+
+    _, a = jax.jvp(zero_sum, (sol.psi, sol.gamma), (rates.psi, rates.gamma))
+    _, c = jax.jvp(common, (sol.psi, sol.delta_gamma), (rates.psi, rates.delta_gamma))
+    gamma = sol.gamma[..., None]
+    m0 = mu_slip_to_roll(gamma, params)
+    d = _degrees(gamma) / 15.0 * (params.C_d1 * params.mu_slp - params.C_d2)
+    u = jnp.abs(cos_rollers(sol.psi))  # |sin θ_i| with θ_i = ψ_i + 90°
+    inner = m0 + d * u  # μ_dyn of the inward stroke (3.2.11)
+    m = jnp.abs(inner)
+    sign0 = jnp.where(m0 >= 0.0, 1.0, -1.0)
+    dm = jnp.where(inner * sign0 >= 0.0, sign0 * d * u, m - jnp.abs(m0))  # m_i − |m_0|
+    s = a + c[..., None]
+    x = s / width
+    tanh = jnp.tanh(x)
+    x2 = x * x
+    series = x2 * (-1.0 / 3.0 + x2 * (2.0 / 15.0 - x2 * (17.0 / 315.0)))  # tanh(x)/x − 1
+    small_x = jnp.abs(x) < 1e-2
+    h = jnp.where(small_x, series, tanh / jnp.where(small_x, 1.0, x) - 1.0)
+    split = (
+        c * jnp.sum(m, axis=-1) + jnp.sum(a * dm, axis=-1) + jnp.sum(s * h * m, axis=-1)
+    ) / width
+    direct = jnp.sum(tanh * m, axis=-1)
+    return jnp.where(jnp.max(jnp.abs(x), axis=-1) < 1.0, split, direct)
+
+
 def _check_model(model, width):
     check_choice("model", model, GAF_MODELS)
     check_positive(width=width)
@@ -311,30 +371,71 @@ class GAFResult:
     result: jax.Array
 
 
+@dataclasses.dataclass(frozen=True)
+class GAFInputs:
+    """What a GAF over a revolution needs besides the kinematics, as one object (for [`sweep`][tripodjax.sweep.sweep]).
+
+    Attributes:
+        torque: joint torque T_d [N·m], finite and ≥ 0 (a number or an array
+            that broadcasts against the batch).
+        params: [`FrictionParams`][tripodjax.friction.FrictionParams] (default grease A).
+        model: ``"stroke"`` (default) or ``"printed"``, see [`gaf`][tripodjax.friction.gaf].
+        width: smoothing width of the stroke model [–], > 0.
+
+    A pytree: ``torque``, ``params`` and ``width`` are leaves (traced,
+    differentiable), ``model`` is static. Checked at construction (the error
+    names the field); JAX's own rebuilding skips the checks.
+    """
+
+    torque: ArrayLike
+    params: FrictionParams = GREASE_A
+    model: str = "stroke"
+    width: ArrayLike = DEFAULT_STROKE_WIDTH
+
+    def __post_init__(self) -> None:
+        check_non_negative("torque", self.torque, " N·m")
+        _check_params(self.params)
+        _check_model(self.model, self.width)
+
+
+def _flatten_gaf_inputs(g):
+    return (g.torque, g.params, g.width), g.model
+
+
+def _unflatten_gaf_inputs(model, children):
+    obj = object.__new__(GAFInputs)  # no checks: JAX rebuilds with tracers and placeholders
+    for name, child in zip(("torque", "params", "width"), children, strict=True):
+        object.__setattr__(obj, name, child)
+    object.__setattr__(obj, "model", model)
+    return obj
+
+
+jax.tree_util.register_pytree_node(GAFInputs, _flatten_gaf_inputs, _unflatten_gaf_inputs)
+
+
 def gaf_from_revolution(
     layout: Layout,
     sol: HalfshaftSolution,
     rates: HalfshaftSolution,
-    torque: ArrayLike,
-    params: FrictionParams,
-    model: str,
-    width: ArrayLike,
+    inputs: GAFInputs,
 ) -> GAFResult:
     """GAF over a revolution from a halfshaft solution and its θ-rates (see [`gaf_halfshaft`][tripodjax.friction.gaf_halfshaft]).
 
     ``sol, rates`` come from [`revolution`][tripodjax.kinematics.revolution] with
-    ``with_rates=True``; no argument is checked here (it runs inside jit).
+    ``with_rates=True``; ``inputs``: a [`GAFInputs`][tripodjax.friction.GAFInputs]
+    (torque, friction constants, model, width). Nothing is checked here (it runs
+    inside jit).
     """
+    torque, params, model, width = inputs.torque, inputs.params, inputs.model, inputs.width
     dtype = sol.theta.dtype
     R, l, gamma0 = (jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0))
-
-    def axial_positions(psi, gamma):
-        _, _, z_rel = joint.roller_centres(R, gamma, psi)
-        return joint.spider_offset(l, gamma0, gamma)[..., None] + z_rel
-
-    _, dz = jax.jvp(axial_positions, (sol.psi, sol.gamma), (rates.psi, rates.gamma))
-    theta_lee = joint.roller_angles(sol.psi) + 0.5 * jnp.pi
-    force = _gaf_force(theta_lee, sol.gamma, -dz / R, torque, R, params, model, width)
+    if model == "printed":
+        theta_lee = joint.roller_angles(sol.psi) + 0.5 * jnp.pi
+        force = _gaf_force(theta_lee, sol.gamma, None, torque, R, params, model, width)
+    else:
+        total = _stroke_sum(sol, rates, R, l, gamma0, params, width)
+        force = 2000.0 * torque / (3.0 * R) * total
+        force = jnp.where(jnp.isfinite(R) & jnp.isfinite(width), force, jnp.nan)
     rms = _safe_rms(force)
     return GAFResult(
         theta=sol.theta,
@@ -379,11 +480,11 @@ def gaf_halfshaft(
     solver = solvers.resolve_legacy(solver, fidelity)  # fidelity: the older spelling
     _check_n_theta(n_theta)
     return _gaf_halfshaft(
-        layout, torque, params, width, n_theta=n_theta, model=model, solver=solver
+        layout, GAFInputs(torque, params, model, width), n_theta=n_theta, solver=solver
     )
 
 
-@functools.partial(jax.jit, static_argnames=("n_theta", "model", "solver"))
-def _gaf_halfshaft(layout, torque, params, width, *, n_theta, model, solver):
+@functools.partial(jax.jit, static_argnames=("n_theta", "solver"))
+def _gaf_halfshaft(layout, inputs, *, n_theta, solver):
     sol, rates = revolution(layout, n_theta, solver, with_rates=True)
-    return gaf_from_revolution(layout, sol, rates, torque, params, model, width)
+    return gaf_from_revolution(layout, sol, rates, inputs)

@@ -445,12 +445,26 @@ def _solve_period(layout, theta, solver):
     R, l, gamma0, theta = _working_arrays(layout, theta)
     if any(jnp.ndim(a) for a in (R, l, gamma0)):
         return _solve(layout, theta, solver)
-    node_theta = jnp.asarray(np.arange(nodes) * (2.0 * np.pi / 3.0 / nodes), theta.dtype)
-    weights = trigonometric_interpolation(theta, nodes)
-    delta, v = _analytic(R, l, gamma0, node_theta, solver.corrections)
-    # Full precision on every backend (a float32 dot may run in TF32/bfloat16 on accelerators).
-    delta, v = (jnp.matmul(weights, u, precision=jax.lax.Precision.HIGHEST) for u in (delta, v))
-    return _finish_analytic(R, l, gamma0, theta, delta, v, solver)
+    spacing = 2.0 * np.pi / 3.0 / nodes
+    node_theta = jnp.asarray(np.arange(nodes) * spacing, theta.dtype)
+    at_nodes = _analytic(R, l, gamma0, node_theta, solver.corrections)
+
+    def interpolate(to):
+        # Full precision on every backend (a float32 dot may run in TF32/bfloat16 on accelerators).
+        weights = trigonometric_interpolation(to, nodes)
+        return (jnp.matmul(weights, u, precision=jax.lax.Precision.HIGHEST) for u in at_nodes)
+
+    delta, v = interpolate(theta)
+    # The error estimate where the answer is formed and where the interpolation errs most: at
+    # the nodes and midway between them (2·nodes angles, not every grid angle; one per period).
+    sample_theta = jnp.asarray(np.arange(2 * nodes) * (0.5 * spacing), theta.dtype)
+    _, estimate = _diagnostics(R, l, gamma0, sample_theta, *interpolate(sample_theta))
+    # The residual at every angle is computed only where it is used (max_residual).
+    residual, _ = _diagnostics(R, l, gamma0, theta, delta, v)
+    # The interpolated answer is finite wherever the node values are.
+    finite = jnp.all(jnp.isfinite(at_nodes[0]) & jnp.isfinite(at_nodes[1]))
+    diagnostics = (residual, jnp.max(estimate))
+    return _finish_analytic(R, l, gamma0, theta, delta, v, solver, diagnostics, finite)
 
 
 def trigonometric_interpolation(theta: ArrayLike, nodes: int) -> jax.Array:
@@ -480,12 +494,20 @@ def trigonometric_interpolation(theta: ArrayLike, nodes: int) -> jax.Array:
     return total / nodes
 
 
-def _finish_analytic(R, l, gamma0, theta, delta, v, solver):
-    """The HalfshaftSolution of an Analytic answer (Δ, v): codes from its error estimate."""
+def _finish_analytic(R, l, gamma0, theta, delta, v, solver, diagnostics=None, finite=None):
+    """The HalfshaftSolution of an Analytic answer (Δ, v): codes from its error estimate.
+
+    ``diagnostics``: (residual, estimate) when already formed (the estimate may be
+    one number for the whole grid), ``finite``: whether (Δ, v) is finite when
+    already known; by default both at every point.
+    """
     delta, v = jnp.broadcast_arrays(delta, v)
     steps = jnp.full(delta.shape, solver.corrections, jnp.int32)
-    diagnostics = _diagnostics(R, l, gamma0, theta, delta, v)
-    bad = _nonfinite_inputs(R, l, gamma0, theta) | ~(jnp.isfinite(delta) & jnp.isfinite(v))
+    if diagnostics is None:
+        diagnostics = _diagnostics(R, l, gamma0, theta, delta, v)
+    if finite is None:
+        finite = jnp.isfinite(delta) & jnp.isfinite(v)
+    bad = _nonfinite_inputs(R, l, gamma0, theta) | ~finite
     result = code_where(diagnostics[1] > solver.validity, RESULTS.outside_validity, 0)
     result = code_where(bad, RESULTS.nonfinite, result)
     return _finish(R, l, gamma0, theta, delta, v, result, steps, diagnostics)

@@ -97,11 +97,14 @@ class Analytic:
     (the interpolation's share; at every angle, ``nodes=None``: below 2e-6).
     One correction: irregularity 1.2e-3, delta_pp 3e-4, gamma_pp 3.8e-3,
     ecc_max 1.2e-3; the closed form alone: 4.2 %, 0.6 %, 23 %, 7.3 %.
-    Speed (``python -m tripodjax.bench``, 2-core CPU): 16–31× newton in the
-    same dtype, about the cost of the closed form.
+    Speed (``python -m tripodjax.bench``, 2-core CPU under load): 15–68× newton
+    in the same dtype for the four metrics, about 20× with
+    [`sweep`][tripodjax.sweep.sweep]'s default outputs (status included);
+    the README's cost table gives each output's cost.
 
     Every point carries an error estimate (the next Newton step with exact
-    sines, relative to the first-order amplitude e(γ0)/|h|), and points
+    sines, relative to the first-order amplitude e(γ0)/|h|; over a revolution
+    formed at the nodes and midway between them, see ``nodes``), and points
     whose estimate exceeds ``validity`` report ``RESULTS.outside_validity``.
 
     Attributes:
@@ -118,7 +121,11 @@ class Analytic:
             one before at R/l = 0.2, γ0 = 45°), so 8 nodes add < 3e-5 relative
             to the errors above (measured over the domain) and make the level
             several times faster. The error estimate and result codes are
-            computed at every grid angle, so they include the interpolation.
+            formed at the nodes and midway between them (where the
+            interpolation errs most), 2·nodes angles per period, so they
+            include the interpolation at a fraction of the cost of forming
+            them at every grid angle; over such a revolution the estimate is
+            one number (the largest), reported at every angle.
     """
 
     corrections: int = 2
@@ -139,16 +146,21 @@ class Analytic:
             object.__setattr__(self, "nodes", nodes)
 
 
-def ClosedForm(validity: float = 1.0 - 1e-9) -> "Analytic":  # noqa: N802 — a solver "class" like the others
-    """The closed form alone: [`Analytic`][tripodjax.solvers.Analytic] with no correction, at every angle.
+def ClosedForm(validity: float = 1.0 - 1e-9, nodes: int | None = 8) -> "Analytic":  # noqa: N802 — a solver "class" like the others
+    """The closed form alone: [`Analytic`][tripodjax.solvers.Analytic] with no correction.
 
     The seed's first order (§2.11) plus the γ ripple; over the whole domain it
     is off by up to 4.2 % (irregularity), 0.6 % (delta_pp), 7.3 % (ecc_max)
     and 23 % (gamma_pp) at R/l = 0.2, γ0 = 45°; within 0.4 % in irregularity
     for R 18–42 mm, l 300–800 mm, γ0 5–25°. Its error estimate is reported, and
-    by default never flags ``outside_validity``.
+    by default never flags ``outside_validity``. At given angles
+    ([`solve_halfshaft`][tripodjax.halfshaft.solve_halfshaft]) it is the
+    printed formula at each angle; over a revolution it is evaluated at
+    ``nodes`` angles per period and interpolated as ``Analytic`` is (the
+    interpolation's < 3e-5 relative is far below the level's own error), so its
+    error estimate costs 2·nodes evaluations per period, not one per angle.
     """
-    return Analytic(corrections=0, validity=validity, nodes=None)
+    return Analytic(corrections=0, validity=validity, nodes=nodes)
 
 
 Solver: TypeAlias = Newton | Analytic

@@ -1,17 +1,21 @@
-"""Batch sweeps over many halfshaft layouts: jit + vmap, chunked, sharded over devices.
+"""Batch sweeps over many halfshaft layouts: jit + vmap, chunked, sharded over devices and processes.
 
 One compiled function evaluates a chunk of layouts; chunks keep memory bounded
-for millions of layouts, and each chunk is split across every visible device
-with JAX's own sharding (a 1-D mesh over the layouts). Multi-host: start every
-process with ``jax.distributed.initialize()`` (see the JAX documentation),
-then call [`sweep`][tripodjax.sweep.sweep] with the same ``layouts`` on every host; ``jax.devices()``
-then spans all hosts and each chunk is split across all of them.
+for millions of layouts, and each chunk is one global array split across every
+device of ``jax.devices()`` (a 1-D mesh over the rows). Several processes
+(hosts): start every process with ``jax.distributed.initialize()``, then call
+[`sweep`][tripodjax.sweep.sweep] with the same ``layouts`` in every process;
+each process places only its own devices' rows of a chunk
+(``jax.make_array_from_callback``), evaluates its share, and every process
+receives the whole result. [`map_chunks`][tripodjax.sweep.map_chunks] is the same
+machinery for any row-wise function (e.g. a Monte Carlo of the design chain).
 """
 
 import collections.abc
 import functools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -21,21 +25,12 @@ from jax.typing import ArrayLike
 from tripodjax import progress as progress_meters
 from tripodjax import solvers
 from tripodjax._checks import (
-    check_choice,
+    check_instance,
     check_integer,
     check_layout_domain,
-    check_non_negative,
-    check_positive,
     check_sweep_batch,
 )
-from tripodjax.friction import (
-    DEFAULT_STROKE_WIDTH,
-    GAF_MODELS,
-    GREASE_A,
-    FrictionParams,
-    _check_params,
-    gaf_from_revolution,
-)
+from tripodjax.friction import GAFInputs, gaf_from_revolution
 from tripodjax.kinematics import (
     METRICS,
     NEEDS_RATES,
@@ -89,7 +84,7 @@ def _check_layouts(layouts):
     return shapes["R"][0]
 
 
-def _check_outputs(outputs: object, torque: object) -> tuple[str, ...]:
+def _check_outputs(outputs: object, gaf: object) -> tuple[str, ...]:
     allowed = f"a sequence of names among {', '.join(OUTPUTS)}"
     if isinstance(outputs, str | bytes):
         raise TypeError(
@@ -106,17 +101,37 @@ def _check_outputs(outputs: object, torque: object) -> tuple[str, ...]:
         raise ValueError(
             f"outputs {unknown or outputs!r} not allowed; allowed: {', '.join(OUTPUTS)}"
         )
-    if any(name in GAF_OUTPUTS for name in outputs) and torque is None:
+    if any(name in GAF_OUTPUTS for name in outputs) and gaf is None:
         raise ValueError(
-            f"outputs {', '.join(n for n in outputs if n in GAF_OUTPUTS)} need a torque [N·m]"
+            f"outputs {', '.join(n for n in outputs if n in GAF_OUTPUTS)} need "
+            "gaf=GAFInputs(torque, ...) (torque [N·m], friction constants, model, width)"
         )
     return tuple(dict.fromkeys(outputs))  # without repeats, in order
 
 
-@functools.partial(jax.jit, static_argnames=("n_theta", "solver", "outputs", "gaf_model"))
-def _evaluate_chunk(
-    layouts, torque, friction_params, width, *, n_theta, solver, outputs, gaf_model
-):
+# Keywords sweep no longer takes, each with what replaces it (a one-line TypeError names it).
+REMOVED_KEYWORDS = {
+    "fidelity": "solver= (a string shorthand or a solver object)",
+    "rtol": "solver=tj.Newton(rtol=..., max_steps=...)",
+    "max_steps": "solver=tj.Newton(rtol=..., max_steps=...)",
+    "torque": "gaf=tj.GAFInputs(torque, params, model, width)",
+    "friction_params": "gaf=tj.GAFInputs(torque, params=...)",
+    "gaf_model": "gaf=tj.GAFInputs(torque, model=...)",
+    "gaf_width": "gaf=tj.GAFInputs(torque, width=...)",
+}
+
+
+def _reject_removed(what: str, keywords: dict[str, object]) -> None:
+    for name in keywords:
+        if name in REMOVED_KEYWORDS:
+            raise TypeError(
+                f"{what}: the keyword {name}= was removed; use {REMOVED_KEYWORDS[name]}"
+            )
+        raise TypeError(f"{what}() got an unexpected keyword argument {name!r}")
+
+
+@functools.partial(jax.jit, static_argnames=("n_theta", "solver", "outputs"))
+def _evaluate_chunk(layouts, gaf, *, n_theta, solver, outputs):
     kinematic = tuple(name for name in outputs if name in KINEMATIC_OUTPUTS)
     gaf_names = tuple(name for name in outputs if name in GAF_OUTPUTS)
     with_rates = bool(gaf_names) or any(name in NEEDS_RATES for name in kinematic)
@@ -125,7 +140,7 @@ def _evaluate_chunk(
         sol, rates = revolution(layout, n_theta, solver, with_rates=with_rates)
         result = metrics_from(layout, sol, rates, kinematic)
         if gaf_names:
-            g = gaf_from_revolution(layout, sol, rates, torque, friction_params, gaf_model, width)
+            g = gaf_from_revolution(layout, sol, rates, gaf)
             result.update(gaf_rms=g.rms, gaf_peak=g.peak, gaf_third_order=g.third_order)
             if "result" in result:
                 result["result"] = worst(result["result"], g.result)
@@ -136,6 +151,113 @@ def _evaluate_chunk(
     return jax.vmap(one)(layouts)
 
 
+def default_chunk_size(points_per_row: int, devices: Sequence[jax.Device] | None = None) -> int:
+    """Rows per compiled call for a row of ``points_per_row`` solved points: 2^18 points on a CPU, 2^22 on an accelerator."""
+    platform = (list(devices) if devices is not None else jax.devices())[0].platform
+    points = DEFAULT_CHUNK_POINTS.get(platform, DEFAULT_CHUNK_POINTS_ACCELERATOR)
+    return max(1, points // max(1, points_per_row))
+
+
+def _gather(leaf: jax.Array, count: int) -> np.ndarray:
+    """A chunk's output as a NumPy array on this process, its first ``count`` rows."""
+    if leaf.is_fully_addressable:
+        return np.asarray(leaf)[:count]
+    # Rows on other processes' devices: every process receives the whole chunk.
+    from jax.experimental import multihost_utils
+
+    return np.asarray(multihost_utils.process_allgather(leaf, tiled=True))[:count]
+
+
+def map_chunks(
+    fn: Callable[[Any], Any],
+    inputs: Any,
+    chunk_size: int,
+    *,
+    devices: Sequence[jax.Device] | None = None,
+    progress: bool | progress_meters.ProgressMeter | None = None,
+    desc: str = "batch",
+    unit: str = "rows",
+) -> Any:
+    """Evaluate a row-wise function over N rows in chunks: bounded memory, split over devices and processes.
+
+    The machinery of [`sweep`][tripodjax.sweep.sweep], for any batch evaluation
+    (e.g. a Monte Carlo of the design chain): each chunk of ``chunk_size`` rows
+    is one global array over a 1-D mesh of ``devices`` (default
+    ``jax.devices()``, which spans every process after
+    ``jax.distributed.initialize()``); each process places only its own
+    devices' rows, the chunk is evaluated where it lies, and every process
+    receives the whole output. One chunk is in flight while the next is
+    dispatched. The last chunk is padded with copies of the last row (one
+    compiled shape throughout).
+
+    Args:
+        fn: a function of a pytree of arrays with leading axis ``chunk_size``
+            to a pytree of arrays with the same leading axis, row by row (row i
+            of the output depends on row i of the input only, e.g. a
+            ``jax.jit`` of a ``jax.vmap``); jit-compiled once per shape.
+        inputs: a pytree of NumPy-convertible arrays with one leading length
+            N, the same in every process.
+        chunk_size: rows per call, a positive integer; rounded up to a
+            multiple of the device count and capped at N (see
+            [`default_chunk_size`][tripodjax.sweep.default_chunk_size]).
+        devices: devices of the mesh (default: all, across processes).
+        progress: as for [`sweep`][tripodjax.sweep.sweep] (a bar on process 0 only).
+        desc, unit: the progress bar's labels.
+
+    Returns:
+        ``fn``'s output pytree with NumPy leaves of leading length N.
+    """
+    chunk_size = int(check_integer("chunk_size", chunk_size, minimum=1))
+    leaves, treedef = jax.tree_util.tree_flatten(inputs)
+    leaves = [np.asarray(leaf) for leaf in leaves]
+    lengths = {leaf.shape[0] if leaf.ndim else -1 for leaf in leaves}
+    if len(lengths) != 1 or -1 in lengths:
+        shapes = [leaf.shape for leaf in leaves]
+        raise ValueError(
+            f"map_chunks needs inputs whose leaves share one leading length; got shapes {shapes}"
+        )
+    n = lengths.pop()
+    devices = list(devices) if devices is not None else jax.devices()
+    mesh = jax.sharding.Mesh(np.array(devices), ("rows",))
+    sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("rows"))
+    chunk = len(devices) * max(1, math.ceil(min(chunk_size, max(n, 1)) / len(devices)))
+    if n == 0:
+        shapes = [jax.ShapeDtypeStruct((chunk, *leaf.shape[1:]), leaf.dtype) for leaf in leaves]
+        out = jax.eval_shape(fn, jax.tree_util.tree_unflatten(treedef, shapes))
+        return jax.tree_util.tree_map(lambda s: np.zeros((0, *s.shape[1:]), s.dtype), out)
+    if progress is None and n <= chunk:
+        progress = False
+    if jax.process_index() != 0:
+        progress = False
+    bar = progress_meters.resolve(progress).start(total=n, desc=desc, unit=unit)
+    pieces: list[Any] = []
+    pending = None  # one chunk in flight while the next is dispatched (JAX runs asynchronously)
+
+    def place(part):
+        # Each process builds only the shards of its own devices.
+        return jax.make_array_from_callback(part.shape, sharding, lambda index: part[index])
+
+    def collect(done):
+        result, count = done
+        pieces.append(jax.tree_util.tree_map(lambda leaf: _gather(leaf, count), result))
+        bar.update(count)
+
+    try:
+        for start in range(0, n, chunk):
+            stop = min(start + chunk, n)
+            index = np.minimum(np.arange(start, start + chunk), stop - 1)
+            part = jax.tree_util.tree_unflatten(treedef, [place(leaf[index]) for leaf in leaves])
+            dispatched = (fn(part), stop - start)
+            if pending is not None:
+                collect(pending)
+            pending = dispatched
+        if pending is not None:
+            collect(pending)
+    finally:
+        bar.close()
+    return jax.tree_util.tree_map(lambda *parts: np.concatenate(parts), *pieces)
+
+
 def sweep(
     layouts: Layout,
     n_theta: int = 360,
@@ -143,16 +265,11 @@ def sweep(
     outputs: Sequence[str] = DEFAULT_OUTPUTS,
     chunk_size: int | None = None,
     *,
-    torque: ArrayLike | None = None,
-    friction_params: FrictionParams = GREASE_A,
-    gaf_model: str = "stroke",
-    gaf_width: float = DEFAULT_STROKE_WIDTH,
+    gaf: GAFInputs | None = None,
     devices: Sequence[jax.Device] | None = None,
     progress: bool | progress_meters.ProgressMeter | None = None,
     throw: bool = False,
-    fidelity: str | None | solvers._Unset = solvers._UNSET,
-    rtol: float | None | solvers._Unset = solvers._UNSET,
-    max_steps: int | solvers._Unset = solvers._UNSET,
+    **removed: object,
 ) -> SweepResult:
     """Metrics of many layouts at once.
 
@@ -161,32 +278,40 @@ def sweep(
             one length N (checked element by element against the layout
             domain; the error names the field and the index).
         n_theta: angles per revolution (a multiple of 6).
-        solver: a [`tripodjax.solvers`][tripodjax.solvers] object or shorthand —
-            ``"newton"`` (default), ``"analytic"``, ``"closed_form"`` (see
+        solver: a [`tripodjax.solvers`][tripodjax.solvers] object, which carries
+            its settings, or a shorthand — ``"newton"`` (default),
+            ``"analytic"``, ``"closed_form"`` (see
             [`kinematic_metrics`][tripodjax.kinematics.kinematic_metrics]).
         outputs: a sequence of names to compute — any
             [`KinematicMetrics`][tripodjax.kinematics.KinematicMetrics] field (including
             ``"result"``, the worst [`RESULTS`][tripodjax.results.RESULTS] code per
             layout, and ``"error_estimate"``, the per-layout error estimate of
             the solver level), and ``"gaf_rms"``, ``"gaf_peak"``,
-            ``"gaf_third_order"`` [N] (these need ``torque``; their status
-            joins ``"result"``). Only these are computed: dψ/dθ, for instance,
-            only when ``"irregularity"`` or a GAF output is asked for. A bare
-            string is a TypeError.
+            ``"gaf_third_order"`` [N] (these need ``gaf``; their status
+            joins ``"result"``). Only these are computed, each at its level's
+            cost (the table in the README's "Speed" section): dψ/dθ only for
+            ``"irregularity"`` and the GAF; under ``analytic`` and
+            ``closed_form`` the status and error estimate from the nodes and
+            midway between them; ``"max_residual"`` evaluates the pair at
+            every angle (as much as the analytic solve itself). A bare string
+            is a TypeError.
         chunk_size: layouts per compiled call, a positive integer, rounded up
             to a multiple of the device count; bounds the memory. Default: 2^18
             solved angles per chunk on a CPU (cache-sized: 2184 layouts at
             n_theta = 360), 2^22 on an accelerator.
-        torque: GAF torque [N·m], finite and ≥ 0 (as [`gaf_halfshaft`][tripodjax.friction.gaf_halfshaft]).
-        friction_params, gaf_model, gaf_width: GAF inputs, see
-            [`gaf_halfshaft`][tripodjax.friction.gaf_halfshaft].
-        devices: devices to split each chunk over (default: all visible).
+        gaf: the GAF inputs, a [`GAFInputs`][tripodjax.friction.GAFInputs]
+            (torque, friction constants, model, width), for the GAF outputs.
+        devices: devices to split each chunk over (default ``jax.devices()``:
+            all devices of all processes).
         progress: ``None`` (a bar when standard error is a terminal and there
             is more than one chunk), ``True``/``False`` or a
             [`ProgressMeter`][tripodjax.progress.ProgressMeter].
         throw: raise [`SolverError`][tripodjax.solvers.SolverError] naming the first
             layout (index) and angle θ whose solve did not succeed.
-        fidelity, rtol, max_steps: older spellings of ``solver``.
+
+    The keywords ``fidelity``, ``rtol``, ``max_steps``, ``torque``,
+    ``friction_params``, ``gaf_model`` and ``gaf_width`` were removed (0.x):
+    each raises a one-line TypeError naming its replacement.
 
     Returns:
         [`SweepResult`][tripodjax.sweep.SweepResult]: a dict name → NumPy array of length N, with
@@ -194,63 +319,37 @@ def sweep(
         ``"converged"`` is among the outputs or ``throw`` is set. The working
         dtype is that of the layout arrays.
     """
+    if removed:
+        _reject_removed("sweep", removed)
     n = _check_layouts(layouts)
-    solver = solvers.resolve_legacy(solver, fidelity, rtol, max_steps)
-    outputs = _check_outputs(outputs, torque)
+    solver = solvers.resolve(solver)
+    outputs = _check_outputs(outputs, gaf)
     _check_n_theta(n_theta)
-    if torque is not None:
-        check_non_negative("torque", torque, " N·m")
+    if gaf is not None:
+        check_instance("gaf", gaf, GAFInputs, "a GAFInputs, e.g. tj.GAFInputs(torque=500.0)")
     if chunk_size is not None:
         chunk_size = int(check_integer("chunk_size", chunk_size, minimum=1))
-    _check_params(friction_params, "friction_params")
-    check_choice("gaf_model", gaf_model, GAF_MODELS)
-    check_positive(gaf_width=gaf_width)
+    devices = check_sweep_batch(n, None if gaf is None else gaf.torque, devices)
     status = bool(throw) or any(name in STATUS_OUTPUTS for name in outputs)
     computed = outputs + (("result",) if status and "result" not in outputs else ())
-    devices = check_sweep_batch(n, torque, devices)
-    mesh = jax.sharding.Mesh(np.array(devices), ("layouts",))
-    sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("layouts"))
-    backend = devices[0].platform
-    default_points = DEFAULT_CHUNK_POINTS.get(backend, DEFAULT_CHUNK_POINTS_ACCELERATOR)
-    chunk = chunk_size or max(1, default_points // (n_theta // 3))
-    chunk = max(len(devices), math.ceil(min(chunk, max(n, 1)) / len(devices)) * len(devices))
-    fields = [np.asarray(getattr(layouts, name)) for name in ("R", "l", "gamma0")]
-    n_chunks = math.ceil(n / chunk)
-    if progress is None and n_chunks <= 1:
-        progress = False
-    bar = progress_meters.resolve(progress).start(total=n, desc="sweep", unit="layouts")
-    static = dict(n_theta=n_theta, solver=solver, outputs=computed, gaf_model=gaf_model)
-    pieces: dict[str, list[np.ndarray]] = {name: [] for name in computed}
-    pending = None  # one chunk in flight while the next is dispatched (JAX runs asynchronously)
-
-    def collect(done):
-        result, count = done
-        for name in computed:
-            pieces[name].append(np.asarray(result[name])[:count])
-        bar.update(count)
-
-    try:
-        for start in range(0, n, chunk):
-            stop = min(start + chunk, n)
-            # Pad the last chunk with copies of its last layout: one compiled shape throughout.
-            index = np.minimum(np.arange(start, start + chunk), stop - 1)
-            part = Layout(*(jax.device_put(f[index], sharding) for f in fields))
-            dispatched = (
-                _evaluate_chunk(part, torque, friction_params, gaf_width, **static),
-                stop - start,
-            )
-            if pending is not None:
-                collect(pending)
-            pending = dispatched
-        if pending is not None:
-            collect(pending)
-    finally:
-        bar.close()
-    out = {name: np.concatenate(pieces[name]) if pieces[name] else np.zeros(0) for name in computed}
+    uses_gaf = any(name in GAF_OUTPUTS for name in computed)
+    evaluate = functools.partial(
+        _evaluate_chunk,
+        gaf=gaf if uses_gaf else None,
+        n_theta=n_theta,
+        solver=solver,
+        outputs=computed,
+    )
+    chunk = chunk_size or default_chunk_size(n_theta // 3, devices)
+    out = map_chunks(
+        evaluate, layouts, chunk, devices=devices, progress=progress, desc="sweep", unit="layouts"
+    )
     codes = out["result"] if status else None
     if throw and codes is not None and np.any(codes != RESULTS.successful):
         i = int(np.flatnonzero(codes != RESULTS.successful)[0])
-        layout = Layout(*(jnp.asarray(f[i]) for f in fields))
+        layout = Layout(
+            *(jnp.asarray(np.asarray(getattr(layouts, f))[i]) for f in ("R", "l", "gamma0"))
+        )
         raise_failure_of_revolution(codes[i], layout, n_theta, solver, "sweep", index=i)
         raise solvers.SolverError(
             f"sweep: layout {i}: {RESULTS(int(codes[i])).name} "
