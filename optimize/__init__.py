@@ -8,10 +8,13 @@
 - [`solve_family`][tripodjax.optimize.solve_family],
   [`pareto_front`][tripodjax.optimize.pareto_front] — many scenarios in one batch.
 - [`sensitivities`][tripodjax.optimize.sensitivities] — how the optimum moves with each number.
+- [`reliability`][tripodjax.optimize.reliability] — the probability of missing each requirement
+  under the spec's ``[uncertainty]`` (FORM, SORM, Monte Carlo, importance sampling).
 - [`evaluate_catalogue`][tripodjax.optimize.evaluate_catalogue] — the GE/GI sizes under the spec.
 """
 
 from tripodjax.optimize.problem import constraint_landscape, evaluate, evaluate_catalogue
+from tripodjax.optimize.reliability import reliability
 from tripodjax.optimize.sensitivity import sensitivities
 from tripodjax.optimize.solver import Result, pareto_front, solve, solve_family
 from tripodjax.optimize.spec import (
@@ -37,6 +40,7 @@ __all__ = [
     "load_spec",
     "pareto_front",
     "parse_spec",
+    "reliability",
     "sensitivities",
     "solve",
     "solve_family",
