@@ -51,6 +51,12 @@ def _parse(argv):
         "--out", required=True, metavar="DIR", help="directory for report.json and the plots"
     )
     parser.add_argument(
+        "--reliability",
+        action="store_true",
+        help="add the reliability table (FORM, SORM, 10^5-sample Monte Carlo) with the default "
+        "tolerances of the docs when the spec has no [uncertainty] (with one, it is always added)",
+    )
+    parser.add_argument(
         "--progress",
         choices=("auto", "on", "off"),
         default="auto",
@@ -151,6 +157,7 @@ def _main(argv):
     from tripodjax.optimize import report
     from tripodjax.optimize._compiled import export_cache, rows_per_call
     from tripodjax.optimize.problem import constraint_landscape, evaluate, evaluate_catalogue
+    from tripodjax.optimize.reliability import report_reliability
     from tripodjax.optimize.sensitivity import sensitivities
     from tripodjax.optimize.solver import _with, run
 
@@ -186,6 +193,7 @@ def _main(argv):
             landscape = constraint_landscape(spec, *_landscape_axes(spec, catalogue))
             if result.converged:  # derivatives of an optimum, not of an unfinished point
                 result.sensitivities = sensitivities(spec, result)
+            reliability = report_reliability(spec, result.design, args.reliability)
             full = None
             if full_reference is not None:
                 warm.result()
@@ -202,6 +210,8 @@ def _main(argv):
         figures["pareto_front.png"] = report.figure_pareto(result, pareto)
     if result.sensitivities is not None and result.sensitivities["elasticities"]:
         figures["sensitivities.png"] = report.figure_tornado(result)
+    if reliability is not None:
+        figures["importance.png"] = report.figure_importance(reliability)
     body = report.report_dict(
         result,
         spec,
@@ -210,6 +220,7 @@ def _main(argv):
         choice=choice,
         full_fidelity=full,
         source=args.spec or "default",
+        reliability=reliability,
     )
     status = "converged" if result.converged else "NOT converged"
     ad_hoc = _summary(result)

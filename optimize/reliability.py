@@ -419,3 +419,27 @@ def reliability(
                 status["is_nonfinite_samples"] += nonfinite
     out["status"] = status
     return out
+
+
+REPORT_SAMPLES = 100_000  # the report's Monte Carlo check
+
+
+def with_default_tolerances(spec: Spec) -> Spec:
+    """The spec with ``uncertainty.DEFAULT_TOLERANCES_TOML`` as its [uncertainty] section."""
+    import tomllib
+
+    return spec.replace_values(**tomllib.loads(uncertainty.DEFAULT_TOLERANCES_TOML))
+
+
+def report_reliability(spec: Spec, design: Mapping[str, float], default_tolerances: bool = False):
+    """The report's reliability section at a design (FORM, SORM and a 10⁵-sample Monte Carlo
+    check, importance sampling below 1e-3), or None when the spec has no [uncertainty] and
+    ``default_tolerances`` is off (then the default tolerances apply)."""
+    source = "spec"
+    if not spec.structure.uncertainty:
+        if not default_tolerances:
+            return None
+        spec, source = with_default_tolerances(spec), "default (docs/reliability.md)"
+    out = reliability(spec, design, "all", samples=REPORT_SAMPLES)
+    out["tolerances"] = source
+    return out

@@ -316,3 +316,44 @@ def test_non_finite_samples_count_as_misses():
     negative = stats.norm.cdf(-1347.0 / 1000.0)
     assert status["mc_nonfinite_samples"] / 20_000 == pytest.approx(negative, abs=0.01)
     assert row(result, "life")["probability_mc"] >= status["mc_nonfinite_samples"] / 20_000
+
+
+def test_chance_constraint_design_meets_its_probability_and_no_more():
+    """max_failure_probability_life = 1e-3: the design's Monte Carlo probability is ≤ 1e-3
+    within its interval, and the FORM constraint is active (β = −Φ⁻¹(1e-3), not above)."""
+    spec = optimize.parse_spec(TOLERANCES + "[constraints]\nmax_failure_probability_life = 1e-3\n")
+    result = optimize.solve(spec, progress=False)
+    assert result.converged and result.feasible
+    pma = result.constraints["max_failure_probability_life"]
+    assert abs(pma["margin"]) < 1e-3  # active
+    design = {k: result.design[k] for k in spec.structure.free}
+    check = optimize.reliability(spec, design, "all", samples=100_000)
+    life = row(check, "life")
+    assert life["beta_form"] == pytest.approx(-stats.norm.ppf(1e-3), rel=0.01)
+    assert life["mc_interval_95"][0] <= 1e-3
+    assert life["probability_mc"] <= 1e-3
+    # Larger than the deterministic optimum, which misses the life about half the time.
+    deterministic = optimize.solve(optimize.parse_spec(TOLERANCES), progress=False)
+    assert result.quantities["outer_diameter"] > deterministic.quantities["outer_diameter"]
+    at_optimum = optimize.reliability(
+        spec, {k: deterministic.design[k] for k in spec.structure.free}, "form"
+    )
+    assert row(at_optimum, "life")["probability_form"] > 0.1
+
+
+def test_cli_reliability_table_with_the_default_tolerances(tmp_path):
+    from test_optimize_cli import run_cli, strict_json
+
+    out = tmp_path / "report"
+    result = run_cli("--reliability", "--out", str(out), "--progress", "off")
+    assert result.returncode == 0, result.stderr
+    table = strict_json(out / "report.json")["reliability"]
+    assert table["tolerances"].startswith("default")
+    assert set(table["inputs"]) == {"R", "d_roller", "conformity", "hertz.P_d"}
+    names = [r["name"] for r in table["requirements"]]
+    assert names[:2] == ["static_capacity", "life"]
+    for r in table["requirements"]:
+        assert r["samples"] >= 100_000 and isinstance(r["agree"], bool)
+        lo, hi = r["mc_interval_95"]
+        assert lo <= r["probability_mc"] <= hi
+    assert (out / "importance.png").stat().st_size > 0
