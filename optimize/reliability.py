@@ -328,8 +328,8 @@ def reliability(
         "is_standard_error", "is_interval_95", "agree", "agree_basis",
         "importance": {key: α²},
         "design_point": {key: value}, "form_converged", "form_iterations"}],
-        "system_probability_mc", "system_interval_95", "system_bounds_form",
-        "status": {...}}``. ``agree``: the SORM probability (the FORM one where SORM
+        "disagree": [names], "system_probability_mc", "system_interval_95",
+        "system_bounds_form", "status": {...}}``. ``agree``: the SORM probability (the FORM one where SORM
         does not apply: β ≤ 0 or a curvature factor ≤ 0; ``agree_basis`` says which) lies
         within the Monte Carlo 95 % interval; absent without both. Non-finite numbers are None. Runs in float64
         (scoped to the call); compiled once per spec structure and chunk size.
@@ -392,6 +392,7 @@ def reliability(
                     basis = "sorm" if row["probability_sorm"] is not None else "form"
                     row["agree"] = bool(lo <= row[f"probability_{basis}"] <= hi)
                     row["agree_basis"] = basis
+            out["disagree"] = [r["name"] for r in out["requirements"] if r.get("agree") is False]
             out["system_probability_mc"] = float(system)
             out["system_standard_error"] = system_se
             out["system_interval_95"] = wilson(float(system), samples)

@@ -357,3 +357,25 @@ def test_cli_reliability_table_with_the_default_tolerances(tmp_path):
         lo, hi = r["mc_interval_95"]
         assert lo <= r["probability_mc"] <= hi
     assert (out / "importance.png").stat().st_size > 0
+
+
+def test_reliability_index_and_probability_forms_are_one_constraint():
+    """min_reliability_index_life = β and max_failure_probability_life = Φ(−β) give one margin."""
+    beta = 2.5
+    by_index = optimize.parse_spec(
+        TOLERANCES + f"[constraints]\nmin_reliability_index_life = {beta}\n"
+    )
+    by_p = optimize.parse_spec(
+        TOLERANCES
+        + f"[constraints]\nmax_failure_probability_life = {float(stats.norm.sf(beta))!r}\n"
+    )
+    assert (
+        by_index.structure.chance[0][1] == "index" and by_p.structure.chance[0][1] == "probability"
+    )
+    design = {"R": 25.55, "d_roller": 43.5}
+    a = optimize.evaluate(by_index, design)["constraints"]["min_reliability_index_life"]
+    b = optimize.evaluate(by_p, design)["constraints"]["max_failure_probability_life"]
+    assert a == pytest.approx(b, abs=1e-9)
+    # At the design, FORM's β is above 2.5 exactly when the PMA margin is positive.
+    form = row(optimize.reliability(by_index, design, "form"), "life")
+    assert (form["beta_form"] > beta) == (a > 0)
