@@ -41,7 +41,7 @@ from tripodjax.optimize.problem import (
     limit_state,
     requirement_structure,
 )
-from tripodjax.optimize.spec import Spec
+from tripodjax.optimize.spec import GAF_QUANTITIES, KINEMATIC_QUANTITIES, Spec
 from tripodjax.results import RESULTS
 
 METHODS = ("form", "mc", "is", "all")
@@ -52,7 +52,11 @@ SORM_STEP = 1e-4  # central-difference step of the curvatures in u
 Z95 = 1.959963984540054  # Φ⁻¹(0.975)
 DEFAULT_SAMPLES = 100_000
 DEFAULT_IS_SAMPLES = 20_000
+# Samples per compiled call: Hertz and life alone 2^15; with the kinematics (n_theta angles per
+# sample) 2^11, which keeps a chunk's arrays near the sweep's 2^18 points (measured: 1.5× faster
+# than 2^15 samples at n_theta 168).
 DEFAULT_CHUNK = 2**15
+DEFAULT_CHUNK_KINEMATIC = 2**11
 IS_BELOW = 1e-3  # method "all": importance sampling where the FORM probability is below this
 
 
@@ -287,7 +291,7 @@ def _check(spec, design, method, samples, is_samples, chunk, seed):
     for name, value, low in (
         ("samples", samples, 2),
         ("is_samples", is_samples, 2),
-        ("chunk", chunk, 1),
+        ("chunk", 1 if chunk is None else chunk, 1),
         ("seed", seed, 0),
     ):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
@@ -305,7 +309,7 @@ def reliability(
     samples: int = DEFAULT_SAMPLES,
     is_samples: int = DEFAULT_IS_SAMPLES,
     seed: int = 0,
-    chunk: int = DEFAULT_CHUNK,
+    chunk: int | None = None,
 ) -> dict:
     """The probability of missing each requirement of the spec at a design.
 
@@ -319,7 +323,8 @@ def reliability(
             ``is_samples`` draws), ``"all"`` (FORM, Monte Carlo, and importance sampling
             where the FORM probability is below 1e-3).
         samples, is_samples, seed, chunk: Monte Carlo draws, importance-sampling draws
-            per requirement, the seed of ``jax.random``, draws per compiled call.
+            per requirement, the seed of ``jax.random``, draws per compiled call (None:
+            2^15, or 2^11 when a requirement needs the kinematics).
 
     Returns:
         ``{"method", "inputs": {key: description}, "requirements": [{"name",
@@ -336,6 +341,9 @@ def reliability(
     """
     design = _check(spec, design, method, samples, is_samples, chunk, seed)
     structure = requirement_structure(spec.structure)
+    if chunk is None:
+        kinematic = structure.needs & set(KINEMATIC_QUANTITIES + GAF_QUANTITIES)
+        chunk = DEFAULT_CHUNK_KINEMATIC if kinematic else DEFAULT_CHUNK
     values, x = design_point(spec, design)
     names = constraint_names(structure)
     inputs = structure.uncertainty
