@@ -379,3 +379,16 @@ def test_reliability_index_and_probability_forms_are_one_constraint():
     # At the design, FORM's β is above 2.5 exactly when the PMA margin is positive.
     form = row(optimize.reliability(by_index, design, "form"), "life")
     assert (form["beta_form"] > beta) == (a > 0)
+
+
+def test_bench_monte_carlo_rate_runs_small():
+    """The benchmark line's function end to end at a small size (figures measured, not asserted)."""
+    from tripodjax.optimize.bench import monte_carlo_rate
+
+    out = monte_carlo_rate(samples=4096, sweep_layouts=256)
+    rates = (
+        "hertz_life_samples_per_s",
+        "kinematics_hertz_life_samples_per_s",
+        "sweep_layouts_per_s",
+    )
+    assert all(out[k] > 0 and math.isfinite(out[k]) for k in rates)
