@@ -136,6 +136,23 @@ def test_distributions_against_scipy():
     assert np.all(np.isfinite(out)) and np.all(np.diff(out[:, 0]) > 0)
 
 
+def test_a_normal_design_variable_is_truncated_at_its_physical_bound():
+    """conformity ≥ 1.0005 (hertz.MIN_CONFORMITY) for every u, however wide the normal."""
+    spec = optimize.parse_spec(
+        '[uncertainty]\nconformity = { distribution = "normal", sd = 0.01 }\n'
+    )
+    (entry,) = spec.structure.uncertainty
+    assert entry.truncate_low and not entry.truncate_high
+    u = np.linspace(-35.0, 35.0, 141)[:, None]
+    with jax.enable_x64(True):
+        out = np.asarray(uncertainty.realize((entry,), spec.values["uncertainty"], [1.002], u))
+    assert np.all(out >= 1.0005) and np.all(np.diff(out[:, 0]) >= 0)
+    truncated = stats.truncnorm((1.0005 - 1.002) / 0.01, np.inf, loc=1.002, scale=0.01)
+    np.testing.assert_allclose(
+        out[60:81, 0], truncated.ppf(stats.norm.cdf(u[60:81, 0])), rtol=1e-12
+    )
+
+
 def test_correlation_is_that_of_the_underlying_normals():
     spec = optimize.parse_spec(
         "[uncertainty]\n"
@@ -218,6 +235,9 @@ def test_form_sorm_and_monte_carlo_agree_at_the_default_design(default_case):
     system = result["system_probability_mc"]
     probabilities = [r["probability_mc"] for r in result["requirements"]]
     assert max(probabilities) <= system <= min(1.0, sum(probabilities)) + 1e-12
+    form = [r["probability_form"] for r in result["requirements"]]
+    assert result["system_bounds_form"] == [max(form), min(1.0, sum(form))]
+    assert result["disagree"] == [r["name"] for r in result["requirements"] if not r["agree"]]
 
 
 def test_design_point_is_on_the_limit_state_nearest_the_origin(default_case):
