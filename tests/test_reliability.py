@@ -266,7 +266,8 @@ def test_openturns_peer(default_case):
         ot.Uniform(1.002, 1.008),
         ot.Normal(1347.0, 0.05 * 1347.0),
     ]
-    distribution = ot.JointDistribution(marginals)
+    joint = getattr(ot, "JointDistribution", None) or ot.ComposedDistribution  # renamed in 1.24
+    distribution = joint(marginals)
     event = ot.ThresholdEvent(
         ot.CompositeRandomVector(model, ot.RandomVector(distribution)), ot.Less(), 0.0
     )
