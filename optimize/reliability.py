@@ -10,7 +10,8 @@ numbers ([`perturb`][tripodjax.optimize.uncertainty.perturb] maps u to the numbe
   ½|u|² + c|g| of Zhang & Der Kiureghian must decrease; the step halves until it does),
   exact gradients from JAX (forward mode through the implicit solves). P ≈ Φ(−β); the
   importance factors α_i² = (∂g/∂u_i)²/|∇g|² at u* (summing to 1) say which inputs
-  matter. SORM (Breitung): P ≈ Φ(−β) Π (1 + β κ_j)^(−½) with the curvatures κ_j at u*
+  matter (with a correlation, the same of the gradient w.r.t. the inputs' correlated
+  standard normals y = L u, so that an input the margin does not depend on gets 0). SORM (Breitung): P ≈ Φ(−β) Π (1 + β κ_j)^(−½) with the curvatures κ_j at u*
   from central differences of the JAX gradient (2n more evaluations).
 - Monte Carlo: seeded (``jax.random``), in chunks of fixed size (bounded memory, one
   compiled program); the estimate, its standard error and the 95 % Wilson interval; the
@@ -183,12 +184,19 @@ def _hlrf(structure, values, x, j):
     factors = 1.0 + beta * kappa
     valid = (beta > 0) & jnp.all(factors > 0) & jnp.isfinite(beta)
     sorm = jnp.where(valid, ndtr(-beta) * jnp.prod(1.0 / jnp.sqrt(jnp.abs(factors))), jnp.nan)
+    # Importance: the squared direction cosines of the margin's gradient w.r.t. the inputs'
+    # (correlated) standard normal variables y = L u; with no correlation these are α².
+    cosines = grad
+    if "correlation" in values["uncertainty"]:
+        cholesky = jnp.linalg.cholesky(values["uncertainty"]["correlation"])
+        cosines = jax.scipy.linalg.solve_triangular(cholesky.T, grad, lower=False)
+    importance = cosines**2 / jnp.where(norm > 0, jnp.dot(cosines, cosines), 1.0)
     return dict(
         beta=beta,
         probability=ndtr(-beta),
         probability_sorm=sorm,
         design_point=u,
-        importance=jnp.where(flat, 0.0, normal**2),
+        importance=jnp.where(flat, 0.0, importance),
         converged=s["converged"],
         iterations=s["k"],
         evaluations=s["evaluations"],

@@ -413,3 +413,20 @@ def test_bench_monte_carlo_rate_runs_small():
         "sweep_layouts_per_s",
     )
     assert all(out[k] > 0 and math.isfinite(out[k]) for k in rates)
+
+
+def test_correlated_inputs_form_against_monte_carlo_and_importance():
+    """A lognormal M_max correlated with P_d: the life does not use M_max, so its importance for
+    the life is 0 (the correlated part is P_d's); SORM within the Monte Carlo interval."""
+    text = TOLERANCES.replace(
+        "[uncertainty]\n",
+        "[uncertainty]\n"
+        'loads.M_max = { distribution = "lognormal", cov = 0.1 }\n'
+        'correlation = [["loads.M_max", "hertz.P_d", -0.5]]\n',
+    )
+    result = optimize.reliability(optimize.parse_spec(text), None, "all", samples=200_000)
+    life, static = row(result, "life"), row(result, "static_capacity")
+    assert life["importance"]["loads.M_max"] < 1e-12
+    assert static["importance"]["hertz.P_d"] < 1e-12 and static["importance"]["loads.M_max"] > 0.01
+    lo, hi = life["mc_interval_95"]
+    assert lo <= life["probability_sorm"] <= hi
