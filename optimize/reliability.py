@@ -340,7 +340,8 @@ def reliability(
         "mc_standard_error", "mc_interval_95", "samples", "probability_is",
         "is_standard_error", "is_interval_95", "agree", "agree_basis",
         "importance": {key: α²},
-        "design_point": {key: value}, "form_converged", "form_iterations"}],
+        "design_point": {key: value}, "form_converged", "form_iterations", "form_note"
+        (only where FORM did not converge)}],
         "disagree": [names], "system_probability_mc", "system_interval_95",
         "system_bounds_form", "status": {...}}``. ``agree``: the SORM probability (the FORM one where SORM
         does not apply: β ≤ 0 or a curvature factor ≤ 0; ``agree_basis`` says which) lies
@@ -389,6 +390,13 @@ def reliability(
                     form_iterations=int(form["iterations"][j]),
                     form_result=RESULTS(int(form["code"][j])).name,
                 )
+                if not row["form_converged"]:
+                    row["form_note"] = (
+                        f"HL-RF stopped after {int(form['iterations'][j])} steps without reaching "
+                        f"the limit state (margin {float(form['g_at_point'][j]):.3g} at its last "
+                        "point), e.g. where a bounded input saturates before the margin reaches 0; "
+                        "the FORM figures are not an estimate, the Monte Carlo one is"
+                    )
             p = np.asarray(form["probability"], float)
             out["system_bounds_form"] = [float(np.max(p)), float(min(1.0, np.sum(p)))]
         if method in ("mc", "all"):

@@ -238,6 +238,8 @@ def test_form_sorm_and_monte_carlo_agree_at_the_default_design(default_case):
     form = [r["probability_form"] for r in result["requirements"]]
     assert result["system_bounds_form"] == [max(form), min(1.0, sum(form))]
     assert result["disagree"] == [r["name"] for r in result["requirements"] if not r["agree"]]
+    for r in result["requirements"]:  # a FORM that did not converge says so in words
+        assert ("form_note" in r) == (not r["form_converged"])
 
 
 def test_design_point_is_on_the_limit_state_nearest_the_origin(default_case):
