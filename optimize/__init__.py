@@ -8,6 +8,8 @@
 - [`solve_family`][tripodjax.optimize.solve_family],
   [`pareto_front`][tripodjax.optimize.pareto_front] — many scenarios in one batch.
 - [`sensitivities`][tripodjax.optimize.sensitivities] — how the optimum moves with each number.
+- [`reliability`][tripodjax.optimize.reliability] — the probability of missing each requirement
+  under the spec's ``[uncertainty]`` (FORM, SORM, Monte Carlo, importance sampling).
 - [`evaluate_catalogue`][tripodjax.optimize.evaluate_catalogue] — the GE/GI sizes under the spec.
 - [`write_report`][tripodjax.optimize.write_report] — report.json, report.html and report.xlsx.
 - [`life_report`][tripodjax.optimize.life_report] — the life of a design, its damage by condition, gear and mode.
@@ -24,6 +26,7 @@ _ATTRIBUTES = {
     "evaluate": "problem",
     "evaluate_catalogue": "problem",
     "life_report": "problem",
+    "reliability": "reliability",
     "sensitivities": "sensitivity",
     "Result": "solver",
     "pareto_front": "solver",
@@ -46,6 +49,7 @@ if typing.TYPE_CHECKING:  # what the lazy attributes are, for type checkers and 
         evaluate_catalogue,
         life_report,
     )
+    from tripodjax.optimize.reliability import reliability
     from tripodjax.optimize.sensitivity import sensitivities
     from tripodjax.optimize.solver import Result, pareto_front, solve, solve_family
     from tripodjax.optimize.spec import (
@@ -85,6 +89,7 @@ __all__ = [
     "load_spec",
     "pareto_front",
     "parse_spec",
+    "reliability",
     "sensitivities",
     "solve",
     "solve_family",

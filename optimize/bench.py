@@ -18,6 +18,8 @@ Every figure is measured in the same run against a peer, and reported as a ratio
   re-solve, and the command's cold and warm run with the conformity free (its warm run
   loads that structure's export from the command's cache).
 - the time report.html and report.xlsx add to writing report.json and the PNGs.
+- Monte Carlo samples per second of the reliability's requirement chain, against the plain
+  sweep's layouts per second (``monte_carlo_rate``).
 
 Needs SciPy (the ``bench`` extra: ``pip install "tripodjax[bench]"``).
 """
@@ -328,6 +330,52 @@ def long_spectrum(cases=1000, command=True):
     return out
 
 
+def monte_carlo_rate(samples=1_000_000, sweep_layouts=65_536):
+    """Monte Carlo samples per second of the requirements' whole chain, against the plain sweep.
+
+    At the default design with the default tolerances: (a) the default spec, whose
+    requirements need the Hertz capacities and the life (no kinematics); (b) the same with
+    a kinematic requirement (``max_eccentricity``) at ``fidelity = "analytic"``,
+    ``n_theta = 168``: kinematics, Hertz and life per sample. Against
+    ``tripodjax.sweep.sweep`` of random layouts at the same fidelity (layouts per second).
+    Compilation is excluded (a warm-up call of the same chunk size first).
+    """
+    import numpy as np
+
+    from tripodjax import optimize
+    from tripodjax.layout import Layout
+    from tripodjax.optimize.reliability import reliability, with_default_tolerances
+    from tripodjax.sweep import sweep
+
+    base = with_default_tolerances(optimize.load_spec())
+    kinematic = optimize.parse_spec(
+        "[solver]\nfidelity = 'analytic'\nn_theta = 168\n[constraints]\nmax_eccentricity = 1.0\n"
+    )
+    kinematic = with_default_tolerances(kinematic)
+    out = {}
+    for name, spec in (("hertz_life", base), ("kinematics_hertz_life", kinematic)):
+        reliability(spec, None, "mc", samples=2**15)  # compile
+        start = time.perf_counter()
+        reliability(spec, None, "mc", samples=samples)
+        out[f"{name}_samples_per_s"] = samples / (time.perf_counter() - start)
+    rng = np.random.default_rng(0)
+    layouts = Layout(
+        R=rng.uniform(20.0, 30.0, sweep_layouts),
+        l=np.full(sweep_layouts, 500.0),
+        gamma0=np.radians(rng.uniform(5.0, 25.0, sweep_layouts)),
+    )
+    kwargs = dict(n_theta=168, solver="analytic", outputs=("ecc_max", "result"), progress=False)
+    sweep(layouts, **kwargs)  # compile
+    start = time.perf_counter()
+    sweep(layouts, **kwargs)
+    out["sweep_layouts_per_s"] = sweep_layouts / (time.perf_counter() - start)
+    out["kinematic_mc_over_sweep"] = (
+        out["kinematics_hertz_life_samples_per_s"] / out["sweep_layouts_per_s"]
+    )
+    out["samples"] = samples
+    return out
+
+
 def optimize_default_structure():
     from tripodjax import optimize
 
@@ -342,11 +390,26 @@ def main(argv=None):
         "--skip-command", action="store_true", help="skip the cold/warm command timings"
     )
     parser.add_argument("--json", metavar="FILE", help="also write the figures as JSON")
+    parser.add_argument(
+        "--reliability-only",
+        action="store_true",
+        help="only the Monte Carlo rate of the reliability (samples/s against the sweep)",
+    )
     args = parser.parse_args(argv)
     _require_scipy()
     import jax
 
     figures = {}
+    figures["monte_carlo"] = m = monte_carlo_rate()
+    print(
+        f"Monte Carlo of the requirements, {m['samples']:.0e} samples: Hertz + life "
+        f"{m['hertz_life_samples_per_s']:.3g} samples/s; analytic kinematics + Hertz + life "
+        f"{m['kinematics_hertz_life_samples_per_s']:.3g} samples/s; plain sweep (analytic, 168) "
+        f"{m['sweep_layouts_per_s']:.3g} layouts/s (ratio {m['kinematic_mc_over_sweep']:.2f})"
+    )
+    if args.reliability_only:
+        _write(args.json, figures)
+        return
     if not args.skip_command:
         figures["command"] = command_latency()
         c = figures["command"]
@@ -406,8 +469,12 @@ def main(argv=None):
             else ""
         )
     )
-    if args.json:
-        with open(args.json, "w", encoding="utf-8") as f:
+    _write(args.json, figures)
+
+
+def _write(path, figures):
+    if path:
+        with open(path, "w", encoding="utf-8") as f:
             json.dump(figures, f, indent=2)
 
 

@@ -138,6 +138,12 @@ def _parse(argv):
         "--out", required=True, metavar="DIR", help="directory for report.json and the plots"
     )
     parser.add_argument(
+        "--reliability",
+        action="store_true",
+        help="add the reliability table (FORM, SORM, 10^5-sample Monte Carlo) with the default "
+        "tolerances of the docs when the spec has no [uncertainty] (with one, it is always added)",
+    )
+    parser.add_argument(
         "--progress",
         choices=("auto", "on", "off"),
         default="auto",
@@ -262,6 +268,7 @@ def _compute(args, spec, command_line):
         evaluate_catalogue,
         life_report,
     )
+    from tripodjax.optimize.reliability import report_reliability
     from tripodjax.optimize.sensitivity import sensitivities
     from tripodjax.optimize.solver import _with, run
 
@@ -299,6 +306,7 @@ def _compute(args, spec, command_line):
             landscape = constraint_landscape(spec, *_landscape_axes(spec, catalogue))
             if result.converged:  # derivatives of an optimum, not of an unfinished point
                 result.sensitivities = sensitivities(spec, result)
+            reliability = report_reliability(spec, result.design, args.reliability)
             full = None
             if full_reference is not None:
                 warm.result()
@@ -320,6 +328,8 @@ def _compute(args, spec, command_line):
         figures["damage.png"] = report.figure_damage(life)
     except ValueError:  # a design outside the domain (a failed solve): no life section
         life = None
+    if reliability is not None:
+        figures["importance.png"] = report.figure_importance(reliability)
     body = report.report_dict(
         result,
         spec,
@@ -329,6 +339,7 @@ def _compute(args, spec, command_line):
         full_fidelity=full,
         source=args.spec or "default",
         life=life,
+        reliability=reliability,
     )
     message, code = _verdict(result)
     body["message"] = message

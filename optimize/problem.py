@@ -17,11 +17,15 @@ Constraint margins, ≥ 0 when satisfied, as logarithmic ratios (0.01 = 1 % to s
     max_<q>           ln(limit / q)
     min_<q>           ln(q / limit)
 
+then each chance constraint of the spec (``max_failure_probability_<q>``,
+``min_reliability_index_<q>``): the requirement's margin at its inverse-FORM point
+(performance-measure approach, [`chance_margins`][tripodjax.optimize.problem.chance_margins]);
 and, in [`evaluate`][tripodjax.optimize.evaluate], the bounds of the free
 variables, (x − lo)/(hi − lo) and (hi − x)/(hi − lo).
 """
 
 import contextlib
+import dataclasses
 import functools
 import math
 from collections.abc import Mapping
@@ -29,11 +33,13 @@ from collections.abc import Mapping
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.scipy.special import ndtri
 
 from tripodjax import friction, hertz, life, vehicle
 from tripodjax._checks import check_instance, check_layout_domain, real_scalar
 from tripodjax.kinematics import metrics_from, revolution
 from tripodjax.layout import Layout
+from tripodjax.optimize import uncertainty
 from tripodjax.optimize._compiled import call, rows_per_call
 from tripodjax.optimize.spec import (
     GAF_QUANTITIES,
@@ -49,7 +55,12 @@ MARGIN_FLOOR = 1e-12  # q is floored at this fraction of its limit inside ln(lim
 
 def constraint_names(structure):
     """The constraints in margin order: the two Hertz requirements, then the spec's."""
-    return ("static_capacity", "life") + tuple(name for name, _, _ in structure.constraints)
+    names = ("static_capacity", "life") + tuple(name for name, _, _ in structure.constraints)
+    return names + tuple(
+        key if len(requirements) == 1 else f"{key}:{name}"
+        for key, _, requirements in structure.chance
+        for name in requirements
+    )
 
 
 def bounds(structure, values, xp=jnp):
@@ -194,10 +205,103 @@ def joint_life(structure, values, design):
 
 
 def objective_and_margins(structure, values, x):
-    """(objective, margins, quantities, result code) of the free-variable vector x."""
+    """(objective, margins, quantities, result code) of the free-variable vector x.
+
+    The margins of the spec's chance constraints follow the deterministic ones (see
+    [`chance_margins`][tripodjax.optimize.problem.chance_margins]).
+    """
     q, code = quantities(structure, values, full_design(structure, values, x))
     o = values["objective"]
     objective = sum(o[f"w_{k}"] * q[k] / o[f"{k}_ref"] for k in structure.objective)
+    margins = requirement_margins(structure, values, q)
+    if structure.chance:
+        chance, chance_code = chance_margins(structure, values, x)
+        margins = jnp.concatenate([margins, chance])
+        code = jnp.maximum(code, chance_code)
+    objective = jnp.asarray(objective)
+    # Finite quantities can still give an infinite objective or margin (a weight of 1e300 over
+    # a reference of 1e-300, an M_max of 5e-324): that is a non-finite problem, not a solve's.
+    finite = jnp.isfinite(objective) & jnp.all(jnp.isfinite(margins))
+    code = code.at[0].max(jnp.where(finite, RESULTS.successful, RESULTS.nonfinite))
+    return objective, margins, q, code
+
+
+def requirement_structure(structure):
+    """The structure of the requirements alone: no objective terms, no chance constraints."""
+    return dataclasses.replace(structure, objective=(), chance=())
+
+
+def limit_state(structure, values, x, u):
+    """(margins, code) of the requirements with the uncertain numbers at standard normal ``u``.
+
+    A margin < 0 is a miss; ``structure`` is a
+    [`requirement_structure`][tripodjax.optimize.problem.requirement_structure].
+    """
+    values, x = uncertainty.perturb(structure, values, x, u)
+    q, code = quantities(structure, values, full_design(structure, values, x))
+    return requirement_margins(structure, values, q), code
+
+
+PMA_STEPS = 12  # hybrid-mean-value steps to the inverse-FORM point (fixed: traced)
+
+
+def chance_margins(structure, values, x):
+    """Margins of the chance constraints by the performance-measure approach (PMA).
+
+    For a target index β_t (−Φ⁻¹(P_max) for ``max_failure_probability_<q>``) the margin is
+    the requirement's margin at the inverse-FORM point, min g(u) over |u| = β_t; it is ≥ 0
+    when the FORM probability of missing is ≤ P_max. The point comes from ``PMA_STEPS``
+    hybrid-mean-value steps from the mean (Youn, Choi & Park 2003): the advanced-mean-value
+    step u ← β_t n(u), n = −∇g/|∇g|, while g is convex along the iterates, the conjugate step
+    u ← β_t (n_k + n_{k−1} + n_{k−2})/|…| where it is concave (AMV alone cycles there); the
+    lowest margin seen is kept. The point is held fixed in the derivatives (stop_gradient):
+    at the minimiser ∂g/∂x is the margin's total derivative. Returns (margins, worst code).
+    """
+    rs = requirement_structure(structure)
+    names = constraint_names(rs)
+    targets, betas = [], []
+    for key, kind, requirements in structure.chance:
+        number = values["constraints"][key]
+        beta = -ndtri(number) if kind == "probability" else number
+        for name in requirements:
+            targets.append(names.index(name))
+            betas.append(beta)
+    fixed_values, fixed_x = jax.lax.stop_gradient((values, x))
+    n = len(structure.uncertainty)
+
+    def point(j, beta):
+        def g(v):
+            return limit_state(rs, fixed_values, fixed_x, v)[0][j]
+
+        def step(k, s):
+            value, grad = jax.vmap(lambda t: jax.jvp(g, (s["u"],), (t,)), out_axes=(None, 0))(
+                jnp.eye(n, dtype=x.dtype)
+            )
+            # The lowest finite margin on the sphere (the mean, k = 0, is not on it).
+            better = (value < s["best"]) & jnp.isfinite(value) & (k >= 1)
+            best_u = jnp.where(better, s["u"], s["best_u"])
+            best = jnp.where(better, value, s["best"])
+            norm = jnp.linalg.norm(grad)
+            normal = -grad / jnp.where(norm > 0, norm, 1.0)
+            zeta = jnp.dot(normal - s["n1"], s["n1"] - s["n2"])
+            conjugate = s["n1"] + s["n2"] + normal
+            conjugate = conjugate / jnp.maximum(jnp.linalg.norm(conjugate), 1e-300)
+            direction = jnp.where((k >= 2) & (zeta < 0), conjugate, normal)
+            return dict(u=beta * direction, n1=normal, n2=s["n1"], best=best, best_u=best_u)
+
+        zero = jnp.zeros(n, x.dtype)
+        init = dict(u=zero, n1=zero, n2=zero, best=jnp.asarray(jnp.inf, x.dtype), best_u=zero)
+        s = jax.lax.fori_loop(0, PMA_STEPS + 1, step, init)  # the last pass only scores
+        return s["best_u"]
+
+    targets = jnp.asarray(targets)
+    u = jax.lax.stop_gradient(jax.vmap(point)(targets, jnp.stack(betas)))
+    margins, codes = jax.vmap(lambda v: limit_state(rs, values, x, v))(u)
+    return jnp.take_along_axis(margins, targets[:, None], axis=1)[:, 0], jnp.max(codes, axis=0)
+
+
+def requirement_margins(structure, values, q):
+    """The deterministic margins (static capacity, life, the spec's constraints) from quantities."""
     loads = values["loads"]
     margins = [
         jnp.log(q["static_capacity"] / (loads["shock_factor"] * m_max(structure, values))),
@@ -207,12 +311,7 @@ def objective_and_margins(structure, values, x):
         limit = values["constraints"][name]
         value = jnp.maximum(q[k], MARGIN_FLOOR * limit)
         margins.append(jnp.log(limit / value) if sense == "max" else jnp.log(value / limit))
-    objective, margins = jnp.asarray(objective), jnp.stack(margins)
-    # Finite quantities can still give an infinite objective or margin (a weight of 1e300 over
-    # a reference of 1e-300, an M_max of 5e-324): that is a non-finite problem, not a solve's.
-    finite = jnp.isfinite(objective) & jnp.all(jnp.isfinite(margins))
-    code = code.at[0].max(jnp.where(finite, RESULTS.successful, RESULTS.nonfinite))
-    return objective, margins, q, code
+    return jnp.stack(margins)
 
 
 def limits(structure, values):
@@ -236,6 +335,11 @@ def limits(structure, values):
             "≤" if sense == "max" else "≥",
             QUANTITIES[k][0],
         )
+    # A chance constraint: its requirement's quantity and limit (value: at the nominal design;
+    # margin: at the inverse-FORM point).
+    for key, _, requirements in structure.chance:
+        for name in requirements:
+            out[key if len(requirements) == 1 else f"{key}:{name}"] = out[name]
     return out
 
 
@@ -327,6 +431,21 @@ def check_design(structure, values, design):
     return out
 
 
+def design_values(spec, design):
+    """(values, x) of a checked ``{variable: value}`` design (spec units): the numbers with the
+    given fixed variables overridden, and the free-variable vector (internal units)."""
+    structure = spec.structure
+    design = check_design(structure, spec.values, design)
+    values = jax.tree_util.tree_map(np.asarray, spec.values)
+    for key, value in design.items():
+        if key not in structure.free:
+            section, name = VARIABLES[key][:2]
+            values[section] = dict(
+                values[section], **{name: np.asarray(from_spec_units(key, value))}
+            )
+    return values, np.array([from_spec_units(k, design[k]) for k in structure.free])
+
+
 def evaluate(spec: Spec, design: Mapping[str, float]) -> dict:
     """Objective, constraint margins and quantities of one design.
 
@@ -351,7 +470,7 @@ def evaluate(spec: Spec, design: Mapping[str, float]) -> dict:
         70.4
     """
     structure = check_spec(spec).structure
-    values, x = _design_values(spec, design)
+    values, x = design_values(spec, design)
     with jax.enable_x64(True):  # the design problem runs in float64; scoped to this call
         objective, margins, q, code = call(_evaluate, structure, values, jnp.asarray(x))
         objective, margins = float(objective), [float(m) for m in margins]
@@ -370,20 +489,6 @@ def evaluate(spec: Spec, design: Mapping[str, float]) -> dict:
         "result": RESULTS(int(np.max(code))).name,
         "life": life_shares,
     }
-
-
-def _design_values(spec, design):
-    """The spec's values with the design's fixed variables set, and the free-variable vector."""
-    structure = check_spec(spec).structure
-    design = check_design(structure, spec.values, design)
-    values = jax.tree_util.tree_map(np.asarray, spec.values)
-    for key, value in design.items():
-        if key not in structure.free:
-            section, name = VARIABLES[key][:2]
-            values[section] = dict(
-                values[section], **{name: np.asarray(from_spec_units(key, value))}
-            )
-    return values, np.array([from_spec_units(k, design[k]) for k in structure.free])
 
 
 @functools.partial(jax.jit, static_argnums=0)
@@ -473,7 +578,7 @@ def life_report(spec: Spec, design: Mapping[str, float]) -> dict:
     spectrum the cases carry their index ``case`` and ``None`` for mode, gear and engine
     condition; without a vehicle M_max_backward_Nm is NaN.
     """
-    values, x = _design_values(check_spec(spec), design)
+    values, x = design_values(check_spec(spec), design)
     with jax.enable_x64(True):
         return _life_report(spec.structure, values, x)
 
@@ -566,8 +671,6 @@ def constraint_landscape(spec: Spec, R: np.ndarray, d: np.ndarray) -> dict:
 
 def _unbounded(spec):
     """The spec with R and d_roller free over a box wide enough for any catalogue size."""
-    import dataclasses
-
     structure = spec.structure
     free = tuple(k for k in VARIABLES if k in structure.free or k in ("R", "d_roller"))
     b = dict(spec.values["bounds"])

@@ -66,8 +66,13 @@ def report_dict(
     full_fidelity=None,
     source="default",
     life=None,
+    reliability=None,
 ):
-    """Everything a reader needs: design, status, constraints, sensitivities, catalogue, spec."""
+    """Everything a reader needs: design, status, constraints, sensitivities, catalogue, spec.
+
+    ``reliability``: the [`reliability`][tripodjax.optimize.reliability] answer at the
+    design, written as the report's ``reliability`` section when given.
+    """
     report = {
         "design": design_keys(result.design),
         "free_variables": list(spec.structure.free),
@@ -116,6 +121,8 @@ def report_dict(
         }
         for w, r in pareto
     ]
+    if reliability is not None:
+        report["reliability"] = reliability
     report["spec_source"] = source
     report["spec"] = spec.resolved
     report["versions"] = versions()
@@ -325,6 +332,35 @@ def figure_damage(life):
     for ax in (ax0, ax1):
         ax.grid(alpha=0.3, axis="y")
     fig.subplots_adjust(left=0.07, right=0.98, bottom=0.22, top=0.9, wspace=0.25)
+    return fig
+
+
+def figure_importance(reliability):
+    """The FORM importance factors α² of the uncertain inputs, one stacked bar per requirement."""
+    rows = [r for r in reliability["requirements"] if r.get("importance")]
+    inputs = list(reliability["inputs"])
+    fig = _figure(figsize=(9, 0.5 * len(rows) + 2.2))
+    ax = fig.subplots()
+    left = np.zeros(len(rows))
+    for i, key in enumerate(inputs):
+        share = np.array([r["importance"][key] for r in rows])
+        ax.barh(range(len(rows)), share, left=left, color=f"C{i % 10}", label=key)
+        left += share
+    labels = []
+    for r in rows:
+        beta, p = r.get("beta_form"), r.get("probability_form")
+        beta = "β = ∞" if beta is None else f"β = {beta:.2f}"
+        note = "" if r.get("form_converged") else ", FORM not converged"
+        labels.append(f"{r['name']}\n{beta}, P = {p:.2g}{note}")
+    ax.set_yticks(range(len(rows)), labels, fontsize=8)
+    ax.set(
+        xlim=(0, 1),
+        title="which tolerance matters: FORM importance factors α² per requirement",
+        xlabel="share of the variance of the linearised margin at the design point [–]",
+    )
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=min(4, len(inputs)))
+    ax.grid(alpha=0.3, axis="x")
+    fig.subplots_adjust(left=0.3, right=0.97, bottom=0.32, top=0.9)
     return fig
 
 

@@ -138,6 +138,16 @@ max_R_over_d = 0.83
 # max_outer_diameter = 100.0  # optional envelope on 2R + d [mm]
 # max_eccentricity = 0.5      # spider-centre eccentricity [mm]
 
+[uncertainty]
+# Distributions on any spec number (design variables: a tolerance around the design), e.g.
+#   R = { distribution = "normal", sd = 0.01 }                      [mm]
+#   conformity = { distribution = "uniform", low = 1.002, high = 1.008 }
+#   hertz.P_d = { distribution = "normal", cov = 0.05 }
+#   correlation = [["R", "d_roller", 0.3]]
+# Kinds: normal (sd or cov; low/high truncate), lognormal (sd or cov), uniform (low and high,
+# or half_width). With any entry the report gives the probability of missing each requirement,
+# and [constraints] accepts max_failure_probability_<q> / min_reliability_index_<q>.
+
 [solver]
 # Among the cheapest settings (first solve: trace, compile and run) whose design lies within 0.1 %
 # of the newton / n_theta = 360 answer (python -m tripodjax.optimize.bench; analytic at 360 angles
@@ -264,6 +274,8 @@ class Structure:
     starts: int
     max_outer: int
     inner_steps: int
+    uncertainty: tuple = ()  # uncertainty.Input per uncertain number
+    chance: tuple = ()  # (key, "probability" or "index", constrained requirement names)
 
     @property
     def needs(self):
@@ -466,7 +478,7 @@ def _merge(default, override, path=()):
         section = path[0] if path else None
         if (
             key not in default
-            and section not in ("objective", "constraints", "bounds", "friction")
+            and section not in ("objective", "constraints", "bounds", "friction", "uncertainty")
             and where not in OPTIONAL_KEYS
         ):
             raise SpecError(f"unknown key {where}; allowed here: {', '.join(sorted(default))}")
@@ -544,10 +556,56 @@ def _objective(table):
     return terms, values
 
 
+CHANCE_PREFIXES = {"max_failure_probability_": "probability", "min_reliability_index_": "index"}
+
+
+def _chance(key, value):
+    """A chance constraint's (kind, quantity, number) from its key, or None for another key."""
+    for prefix, kind in CHANCE_PREFIXES.items():
+        if key.startswith(prefix):
+            q = key[len(prefix) :]
+            if q not in (*QUANTITIES, "life"):
+                raise SpecError(
+                    f"unknown key constraints.{key}; allowed: {prefix}<q> with <q> life, static_capacity "
+                    "or a quantity with a max_<q> / min_<q> constraint"
+                )
+            tab = {"constraints": {key: value}}
+            if kind == "probability":  # β = −Φ⁻¹(P) from 0 to 8
+                number = _number(tab, "constraints", key, 0.0, 0.5, low_open=True)
+            else:
+                number = _number(tab, "constraints", key, 0.0, 8.0)
+            return kind, "life_km" if q == "life" else q, number
+    return None
+
+
+def _chance_constraints(chances, names, uncertainty):
+    """(key, kind, requirement names) of each chance constraint; needs [uncertainty]."""
+    out = []
+    for key, (kind, q) in chances.items():
+        if not uncertainty:
+            raise SpecError(
+                f"constraints.{key} needs uncertain numbers: give at least one [uncertainty] entry"
+            )
+        targets = [n for n, k, _ in names if k == q]
+        targets = {"life_km": ["life"], "static_capacity": ["static_capacity"]}.get(q, targets)
+        if not targets:
+            raise SpecError(
+                f"constraints.{key}: {q} has no constraint to hold with a probability; "
+                f"give constraints.max_{q} or constraints.min_{q}"
+            )
+        out.append((key, kind, tuple(targets)))
+    return tuple(out)
+
+
 def _constraints(table):
     given = dict(table["constraints"])
-    names, values = [], {}
+    names, values, chances = [], {}, {}
     for key, value in given.items():
+        chance = _chance(key, value)
+        if chance is not None:
+            chances[key] = chance[:2]
+            values[key] = chance[2]
+            continue
         prefix, q = _quantity_key("constraints", key, (("max_", ""), ("min_", "")))
         values[key] = _number({"constraints": {key: value}}, "constraints", key, 0.0, low_open=True)
         names.append((key, q, prefix[:-1]))
@@ -559,7 +617,7 @@ def _constraints(table):
                 f"constraints.min_{q} = {values[key]:g} is above constraints.max_{q} = "
                 f"{values[f'max_{q}']:g}: no design can meet both"
             )
-    return tuple(names), values
+    return tuple(names), values, chances
 
 
 def _bounds(table, fixed):
@@ -824,7 +882,7 @@ def _check(table):
     fixed.update(v["friction"])
     gaf_model = _string(table, "friction", "gaf_model", GAF_MODELS)
     terms, v["objective"] = _objective(table)
-    constraints, v["constraints"] = _constraints(table)
+    constraints, v["constraints"], chances = _constraints(table)
     max_life = v["constraints"].get("max_life_km")
     if max_life is not None and max_life < v["life"]["required_km"]:
         raise SpecError(
@@ -851,6 +909,7 @@ def _check(table):
             f"{product} = {numbers} = {work:.3g} is not allowed: at most {MAX_WORK:.3g} "
             "(the work of one solve); lower one of them"
         )
+    inputs, v["uncertainty"] = _uncertainty(table, v, tuple(k for k in VARIABLES if k in bounds))
     v["solver"] = {"tolerance": _number(table, "solver", "tolerance", 1e-12, 1e-1)}
     structure = Structure(
         free=tuple(k for k in VARIABLES if k in bounds),
@@ -866,6 +925,8 @@ def _check(table):
         gaf_model=gaf_model,
         fidelity=_string(table, "solver", "fidelity", FIDELITIES),
         **sizes,
+        uncertainty=inputs,
+        chance=_chance_constraints(chances, constraints, inputs),
     )
     if not structure.free:
         raise SpecError(
@@ -873,6 +934,18 @@ def _check(table):
         )
     values = jax.tree_util.tree_map(lambda x: np.asarray(x, np.float64), v)
     return Spec(structure=structure, values=values, resolved=table)
+
+
+def _uncertainty(table, values, free):
+    """The [uncertainty] section: (inputs, their numbers); see tripodjax.optimize.uncertainty."""
+    from tripodjax.optimize import uncertainty
+
+    section = table["uncertainty"]
+    if not isinstance(section, dict):
+        raise SpecError("uncertainty must be a table")
+    numbers = jax.tree_util.tree_map(np.asarray, values)
+    numbers["bounds"] = {k: np.asarray(b) for k, b in values["bounds"].items()}
+    return uncertainty.parse(section, numbers, VARIABLES, free)
 
 
 def parse_spec(text: str, source: str = "spec", base: str | os.PathLike | None = None) -> Spec:

@@ -1,0 +1,434 @@
+"""Uncertain spec numbers and the reliability of a design: FORM, SORM, Monte Carlo, importance
+sampling, chance constraints; OpenTURNS as the peer on a limit state both evaluate."""
+
+import math
+import sys
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from scipy import stats
+
+from tripodjax import optimize
+from tripodjax.optimize import uncertainty
+from tripodjax.optimize.problem import (
+    full_design,
+    quantities,
+    requirement_margins,
+    requirement_structure,
+)
+
+rel = sys.modules["tripodjax.optimize.reliability"]  # the module (its function shares the name)
+
+# The issue's case: normal tolerances on R and d (σ 0.01 mm), the workbook's conformity range,
+# a 5 % scatter of P_d.
+TOLERANCES = uncertainty.DEFAULT_TOLERANCES_TOML
+
+
+def row(result, name):
+    return next(r for r in result["requirements"] if r["name"] == name)
+
+
+# --------------------------------------------------------------------------- the spec section
+
+
+@pytest.mark.parametrize(
+    ("text", "names"),
+    [
+        ('R = { distribution = "gauss", sd = 0.01 }', ("uncertainty.R.distribution", "'normal'")),
+        ('R = { distribution = "normal", sd = -0.01 }', ("uncertainty.R.sd", "> 0")),
+        ('R = { distribution = "normal" }', ("uncertainty.R", "sd or cov")),
+        ('R = { distribution = "normal", sd = 0.1, cov = 0.1 }', ("uncertainty.R", "sd or cov")),
+        ('R = { distribution = "normal", sd = 0.1, width = 2 }', ("uncertainty.R", "width")),
+        (
+            'conformity = { distribution = "uniform", low = 0.99, high = 1.01 }',
+            ("uncertainty.conformity", "1.0005"),
+        ),
+        (
+            'conformity = { distribution = "uniform", low = 1.008, high = 1.002 }',
+            ("uncertainty.conformity", "low < high"),
+        ),
+        ('hertz.P_x = { distribution = "normal", cov = 0.05 }', ("uncertainty.hertz.P_x",)),
+        ('life.torque = { distribution = "normal", cov = 0.05 }', ("life.torque", "list")),
+        (
+            'loads.M_max = { distribution = "uniform", low = 1.0, half_width = 0.1 }',
+            ("uncertainty.loads.M_max", "not both"),
+        ),
+        ("R = 0.01", ("uncertainty.R", "table")),
+        (
+            'R = { distribution = "normal", sd = 0.01 }\n'
+            'd_roller = { distribution = "normal", sd = 0.01 }\n'
+            'correlation = [["R", "d_roller", 1.2]]',
+            ("uncertainty.correlation[0]", "1.2"),
+        ),
+        (
+            'R = { distribution = "normal", sd = 0.01 }\ncorrelation = [["R", "l", 0.2]]',
+            ("uncertainty.correlation[0]", "'l'"),
+        ),
+    ],
+)
+def test_bad_uncertainty_is_one_line_naming_key_and_value(text, names):
+    with pytest.raises(optimize.SpecError) as error:
+        optimize.parse_spec("[uncertainty]\n" + text.replace("\\n", "\n"))
+    message = str(error.value)
+    assert "\n" not in message
+    for name in names:
+        assert name in message
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ("max_failure_probability_life = 1e-3", "needs uncertain numbers"),
+        ("max_failure_probability_life = 0.7", "≤ 0.5"),
+        ("min_reliability_index_life = -1", "≥ 0"),
+        ("max_failure_probability_eccentricity = 1e-3", "no constraint"),
+        ("max_failure_probability_colour = 1e-3", "unknown key constraints."),
+    ],
+)
+def test_bad_chance_constraint(text, expected):
+    unc = "" if "needs" in expected else TOLERANCES
+    with pytest.raises(optimize.SpecError, match=expected):
+        optimize.parse_spec(unc + "[constraints]\n" + text)
+
+
+def test_uncertain_numbers_are_traced_and_kinds_are_structure():
+    a = optimize.parse_spec(TOLERANCES)
+    b = optimize.parse_spec(TOLERANCES.replace("sd = 0.01", "sd = 0.02"))
+    c = optimize.parse_spec(TOLERANCES.replace('"normal", cov', '"lognormal", cov'))
+    assert a.structure == b.structure
+    assert a.structure != c.structure
+    assert float(b.values["uncertainty"]["R"]["spread"]) == 0.02
+    leaves = jax.tree_util.tree_leaves(a.values["uncertainty"])
+    assert leaves and all(isinstance(v, np.ndarray) for v in leaves)
+
+
+def test_distributions_against_scipy():
+    """realize(u) is each distribution's inverse CDF at Φ(u), tails included."""
+    spec = optimize.parse_spec(
+        "[uncertainty]\n"
+        'R = { distribution = "normal", sd = 0.5, low = 24.0, high = 26.5 }\n'
+        'hertz.P_d = { distribution = "lognormal", cov = 0.2 }\n'
+        'conformity = { distribution = "uniform", low = 1.002, high = 1.008 }\n'
+        'loads.M_max = { distribution = "normal", cov = 0.1 }\n'
+        'layout.gamma0_deg = { distribution = "uniform", half_width = 2.0 }\n'
+    )
+    inputs, numbers = spec.structure.uncertainty, spec.values["uncertainty"]
+    means = [25.55, 1347.0, 1.005, 1154.0, math.radians(20.0)]
+    u = np.array([-30.0, -6.0, -1.3, 0.0, 0.7, 5.0, 30.0])
+    with jax.enable_x64(True):
+        out = np.asarray(uncertainty.realize(inputs, numbers, means, np.stack([u] * 5, -1)))
+    p = stats.norm.cdf(u)
+    a, b = (24.0 - 25.55) / 0.5, (26.5 - 25.55) / 0.5
+    truncated = stats.truncnorm(a, b, loc=25.55, scale=0.5)
+    # scipy's ppf from the upper tail where p rounds to 1
+    expected_r = np.where(u < 0, truncated.ppf(p), truncated.isf(stats.norm.sf(u)))
+    np.testing.assert_allclose(out[:, 0], expected_r, rtol=1e-12, atol=1e-9)
+    s = math.sqrt(math.log1p(0.2**2))
+    lognormal = stats.lognorm(s, scale=1347.0 * math.exp(-0.5 * s * s))
+    np.testing.assert_allclose(out[2:5, 1], lognormal.ppf(p[2:5]), rtol=1e-12)
+    np.testing.assert_allclose(out[:, 2], stats.uniform(1.002, 0.006).ppf(p), rtol=1e-14)
+    np.testing.assert_allclose(out[:, 3], 1154.0 * (1 + 0.1 * u), rtol=1e-14)
+    np.testing.assert_allclose(
+        out[:, 4], math.radians(20.0) + math.radians(2.0) * (2 * p - 1), rtol=1e-14
+    )
+    assert np.all(np.isfinite(out)) and np.all(np.diff(out[:, 0]) > 0)
+
+
+def test_a_normal_design_variable_is_truncated_at_its_physical_bound():
+    """conformity ≥ 1.0005 (hertz.MIN_CONFORMITY) for every u, however wide the normal."""
+    spec = optimize.parse_spec(
+        '[uncertainty]\nconformity = { distribution = "normal", sd = 0.01 }\n'
+    )
+    (entry,) = spec.structure.uncertainty
+    assert entry.truncate_low and not entry.truncate_high
+    u = np.linspace(-35.0, 35.0, 141)[:, None]
+    with jax.enable_x64(True):
+        out = np.asarray(uncertainty.realize((entry,), spec.values["uncertainty"], [1.002], u))
+    assert np.all(out >= 1.0005) and np.all(np.diff(out[:, 0]) >= 0)
+    truncated = stats.truncnorm((1.0005 - 1.002) / 0.01, np.inf, loc=1.002, scale=0.01)
+    np.testing.assert_allclose(
+        out[60:81, 0], truncated.ppf(stats.norm.cdf(u[60:81, 0])), rtol=1e-12
+    )
+
+
+def test_correlation_is_that_of_the_underlying_normals():
+    spec = optimize.parse_spec(
+        "[uncertainty]\n"
+        'R = { distribution = "normal", sd = 0.01 }\n'
+        'd_roller = { distribution = "normal", sd = 0.02 }\n'
+        'correlation = [["R", "d_roller", -0.6]]\n'
+    )
+    z = np.random.default_rng(1).standard_normal((200_000, 2))
+    with jax.enable_x64(True):
+        out = np.asarray(
+            uncertainty.realize(
+                spec.structure.uncertainty, spec.values["uncertainty"], [25.55, 43.5], z
+            )
+        )
+    assert abs(np.corrcoef(out.T)[0, 1] + 0.6) < 0.01
+    np.testing.assert_allclose(np.std(out, axis=0), [0.01, 0.02], rtol=0.01)
+
+
+# --------------------------------------------------------------------------- reliability
+
+
+def test_wilson_interval():
+    assert rel.wilson(0.0, 1000) == [0.0, pytest.approx(3.84 / 1003.84, rel=1e-3)]
+    lo, hi = rel.wilson(0.5, 10_000)
+    assert lo == pytest.approx(0.5 - 1.96 * 0.005, abs=1e-4) and hi == pytest.approx(1 - lo)
+
+
+def test_reliability_errors():
+    with pytest.raises(ValueError, match="no \\[uncertainty\\]"):
+        optimize.reliability(optimize.load_spec())
+    spec = optimize.parse_spec(TOLERANCES)
+    with pytest.raises(ValueError, match="method = 'sorm'"):
+        optimize.reliability(spec, method="sorm")
+    with pytest.raises(ValueError, match="samples = 0"):
+        optimize.reliability(spec, method="mc", samples=0)
+
+
+def _life_margin_batch(spec):
+    """The life margin of a design as a function of the physical (R, d, Ψ, P_d): the peer's
+    limit state (through the problem's quantities, independent of the uncertainty module)."""
+    structure = requirement_structure(spec.structure)
+    values = jax.tree_util.tree_map(jnp.asarray, spec.values)
+    names = optimize.problem.constraint_names(structure)
+
+    def one(row):
+        v = dict(values, hertz=dict(values["hertz"], P_d=row[3]))
+        design = full_design(structure, v, jnp.zeros(len(structure.free)))
+        design.update(R=row[0], d_roller=row[1], conformity=row[2])
+        q, _ = quantities(structure, v, design)
+        return requirement_margins(structure, v, q)[names.index("life")]
+
+    batch = jax.jit(jax.vmap(one))
+
+    def g(x):
+        with jax.enable_x64(True):
+            return np.asarray(batch(jnp.asarray(np.asarray(x, float))))
+
+    return g
+
+
+@pytest.fixture(scope="module")
+def default_case():
+    """The issue's Done-when case at the default design (the workbook joint), 10⁶ samples."""
+    spec = optimize.parse_spec(TOLERANCES)
+    return spec, optimize.reliability(spec, None, "all", samples=1_000_000, chunk=2**16)
+
+
+def test_form_sorm_and_monte_carlo_agree_at_the_default_design(default_case):
+    _, result = default_case
+    life = row(result, "life")
+    assert life["form_converged"] and life["samples"] == 1_000_000
+    lo, hi = life["mc_interval_95"]
+    assert 1e-4 < life["probability_mc"] < 0.2  # a probability a 10⁶-sample check resolves
+    assert lo <= life["probability_sorm"] <= hi
+    assert life["agree"] and life["agree_basis"] == "sorm"
+    assert math.isclose(sum(life["importance"].values()), 1.0, rel_tol=1e-9)
+    # The design point lies on the limit state: the design evaluated there misses by ~0.
+    assert result["status"]["mc_failed_solves"] == 0
+    assert result["status"]["mc_nonfinite_samples"] == 0
+    system = result["system_probability_mc"]
+    probabilities = [r["probability_mc"] for r in result["requirements"]]
+    assert max(probabilities) <= system <= min(1.0, sum(probabilities)) + 1e-12
+    form = [r["probability_form"] for r in result["requirements"]]
+    assert result["system_bounds_form"] == [max(form), min(1.0, sum(form))]
+    assert result["disagree"] == [r["name"] for r in result["requirements"] if not r["agree"]]
+    for r in result["requirements"]:  # a FORM that did not converge says so in words
+        assert ("form_note" in r) == (not r["form_converged"])
+
+
+def test_design_point_is_on_the_limit_state_nearest_the_origin(default_case):
+    """At u* the margin is 0 and u* is parallel to −∇g (the FORM optimality conditions)."""
+    spec, result = default_case
+    life = row(result, "life")
+    g = _life_margin_batch(spec)
+    point = np.array(
+        [[life["design_point"][k] for k in ("R", "d_roller", "conformity", "hertz.P_d")]]
+    )
+    assert abs(g(point)[0]) < 1e-9
+
+
+def test_openturns_peer(default_case):
+    """FORM β within 1 % of OpenTURNS', SORM (Breitung) alike, Monte Carlo P within the interval."""
+    ot = pytest.importorskip("openturns")  # the test extra installs it
+    spec, result = default_case
+    life = row(result, "life")
+    g = _life_margin_batch(spec)
+    model = ot.PythonFunction(
+        4, 1, func=lambda x: [float(g([x])[0])], func_sample=lambda xs: g(xs)[:, None]
+    )
+    marginals = [
+        ot.Normal(25.55, 0.01),
+        ot.Normal(43.5, 0.01),
+        ot.Uniform(1.002, 1.008),
+        ot.Normal(1347.0, 0.05 * 1347.0),
+    ]
+    joint = getattr(ot, "JointDistribution", None) or ot.ComposedDistribution  # renamed in 1.24
+    distribution = joint(marginals)
+    event = ot.ThresholdEvent(
+        ot.CompositeRandomVector(model, ot.RandomVector(distribution)), ot.Less(), 0.0
+    )
+    solver = ot.AbdoRackwitz()
+    solver.setMaximumIterationNumber(200)
+    form = ot.FORM(solver, event, distribution.getMean())
+    form.run()
+    beta_ot = form.getResult().getHasoferReliabilityIndex()
+    assert life["beta_form"] == pytest.approx(beta_ot, rel=0.01)
+    sorm = ot.SORM(solver, event, distribution.getMean())
+    sorm.run()
+    breitung = sorm.getResult().getEventProbabilityBreitung()
+    assert life["probability_sorm"] == pytest.approx(breitung, rel=0.02)
+    ot.RandomGenerator.SetSeed(7)
+    mc = ot.ProbabilitySimulationAlgorithm(event, ot.MonteCarloExperiment())
+    mc.setBlockSize(2**15)
+    mc.setMaximumOuterSampling(8)  # 262 144 samples
+    mc.setMaximumCoefficientOfVariation(-1.0)
+    mc.run()
+    p_ot = mc.getResult().getProbabilityEstimate()
+    se_ot = mc.getResult().getStandardDeviation()
+    # Two independent estimates: their difference within its 95 % interval.
+    spread = 1.96 * math.hypot(se_ot, life["mc_standard_error"])
+    assert abs(p_ot - life["probability_mc"]) <= spread
+    lo, hi = life["mc_interval_95"]
+    assert lo <= breitung <= hi
+
+
+def test_importance_sampling_reaches_small_probabilities():
+    """A linear limit state in u (lognormal P_d only: ln L is linear in ln P_d) with P ≈ 1e-6:
+    FORM is exact there, and 2·10⁴ importance samples estimate it to a few per cent."""
+    text = '[uncertainty]\nhertz.P_d = { distribution = "lognormal", cov = 0.05 }\n'
+    spec = optimize.parse_spec(text)
+    first = row(optimize.reliability(spec, None, "form"), "life")
+    # Move the required life so that β = 4.75 (P ≈ 1.0e-6): g = a + b·u is linear.
+    required = float(spec.values["life"]["required_km"])
+    g0 = _margin_at_mean(spec)
+    slope = g0 / first["beta_form"]  # |∂g/∂u|
+    target = 4.75
+    spec = spec.replace_values(life={"required_km": required * math.exp(g0 - target * slope)})
+    result = optimize.reliability(spec, None, "is", is_samples=20_000)
+    life = row(result, "life")
+    assert life["beta_form"] == pytest.approx(target, rel=1e-6)
+    assert life["probability_is"] == pytest.approx(stats.norm.sf(target), rel=0.05)
+    assert life["is_standard_error"] / life["probability_is"] < 0.02
+    assert life["is_interval_95"][0] <= life["probability_form"] <= life["is_interval_95"][1]
+
+
+def _margin_at_mean(spec):
+    """The life margin with every uncertain number at its median (u = 0)."""
+    structure = requirement_structure(spec.structure)
+    values, x = optimize.problem.design_point(spec, optimize.problem.fixed_design(spec.values))
+    with jax.enable_x64(True):
+        m, _ = optimize.problem.limit_state(
+            structure, jax.tree_util.tree_map(jnp.asarray, values), jnp.asarray(x), jnp.zeros(1)
+        )
+    return float(m[1])
+
+
+def test_non_finite_samples_count_as_misses():
+    """Samples where the model gives no finite margin are counted, never dropped."""
+    spec = optimize.parse_spec(
+        '[uncertainty]\nhertz.P_d = { distribution = "normal", sd = 1000.0 }\n'
+    )  # P_d < 0 in about 9 % of the samples: no finite life
+    result = optimize.reliability(spec, None, "mc", samples=20_000, chunk=4096)
+    status = result["status"]
+    negative = stats.norm.cdf(-1347.0 / 1000.0)
+    assert status["mc_nonfinite_samples"] / 20_000 == pytest.approx(negative, abs=0.01)
+    assert row(result, "life")["probability_mc"] >= status["mc_nonfinite_samples"] / 20_000
+
+
+def test_chance_constraint_design_meets_its_probability_and_no_more():
+    """max_failure_probability_life = 1e-3: the design's Monte Carlo probability is ≤ 1e-3
+    within its interval, and the FORM constraint is active (β = −Φ⁻¹(1e-3), not above)."""
+    spec = optimize.parse_spec(TOLERANCES + "[constraints]\nmax_failure_probability_life = 1e-3\n")
+    result = optimize.solve(spec, progress=False)
+    assert result.converged and result.feasible
+    pma = result.constraints["max_failure_probability_life"]
+    assert abs(pma["margin"]) < 1e-3  # active
+    design = {k: result.design[k] for k in spec.structure.free}
+    check = optimize.reliability(spec, design, "all", samples=100_000)
+    life = row(check, "life")
+    assert life["beta_form"] == pytest.approx(-stats.norm.ppf(1e-3), rel=0.01)
+    assert life["mc_interval_95"][0] <= 1e-3
+    assert life["probability_mc"] <= 1e-3
+    # Larger than the deterministic optimum, which misses the life about half the time.
+    deterministic = optimize.solve(optimize.parse_spec(TOLERANCES), progress=False)
+    assert result.quantities["outer_diameter"] > deterministic.quantities["outer_diameter"]
+    at_optimum = optimize.reliability(
+        spec, {k: deterministic.design[k] for k in spec.structure.free}, "form"
+    )
+    assert row(at_optimum, "life")["probability_form"] > 0.1
+
+
+def test_cli_reliability_table_with_the_default_tolerances(tmp_path):
+    from test_optimize_cli import run_cli, strict_json
+
+    out = tmp_path / "report"
+    result = run_cli("--reliability", "--out", str(out), "--progress", "off")
+    assert result.returncode == 0, result.stderr
+    table = strict_json(out / "report.json")["reliability"]
+    assert table["tolerances"].startswith("default")
+    assert set(table["inputs"]) == {"R", "d_roller", "conformity", "hertz.P_d"}
+    names = [r["name"] for r in table["requirements"]]
+    assert names[:2] == ["static_capacity", "life"]
+    for r in table["requirements"]:
+        assert r["samples"] >= 100_000 and isinstance(r["agree"], bool)
+        lo, hi = r["mc_interval_95"]
+        assert lo <= r["probability_mc"] <= hi
+    assert (out / "importance.png").stat().st_size > 0
+
+
+def test_reliability_index_and_probability_forms_are_one_constraint():
+    """min_reliability_index_life = β and max_failure_probability_life = Φ(−β) give one margin."""
+    beta = 2.5
+    by_index = optimize.parse_spec(
+        TOLERANCES + f"[constraints]\nmin_reliability_index_life = {beta}\n"
+    )
+    by_p = optimize.parse_spec(
+        TOLERANCES
+        + f"[constraints]\nmax_failure_probability_life = {float(stats.norm.sf(beta))!r}\n"
+    )
+    assert (
+        by_index.structure.chance[0][1] == "index" and by_p.structure.chance[0][1] == "probability"
+    )
+    design = {"R": 25.55, "d_roller": 43.5}
+    a = optimize.evaluate(by_index, design)["constraints"]["min_reliability_index_life"]
+    b = optimize.evaluate(by_p, design)["constraints"]["max_failure_probability_life"]
+    assert a == pytest.approx(b, abs=1e-9)
+    # At the design, FORM's β is above 2.5 exactly when the PMA margin is positive.
+    form = row(optimize.reliability(by_index, design, "form"), "life")
+    assert (form["beta_form"] > beta) == (a > 0)
+
+
+def test_bench_monte_carlo_rate_runs_small():
+    """The benchmark line's function end to end at a small size (figures measured, not asserted)."""
+    from tripodjax.optimize.bench import monte_carlo_rate
+
+    out = monte_carlo_rate(samples=4096, sweep_layouts=256)
+    rates = (
+        "hertz_life_samples_per_s",
+        "kinematics_hertz_life_samples_per_s",
+        "sweep_layouts_per_s",
+    )
+    assert all(out[k] > 0 and math.isfinite(out[k]) for k in rates)
+
+
+def test_correlated_inputs_form_against_monte_carlo_and_importance():
+    """A lognormal M_max correlated with P_d: the life does not use M_max, so its importance for
+    the life is 0 (the correlated part is P_d's); SORM within the Monte Carlo interval."""
+    text = TOLERANCES.replace(
+        "[uncertainty]\n",
+        "[uncertainty]\n"
+        'loads.M_max = { distribution = "lognormal", cov = 0.1 }\n'
+        'correlation = [["loads.M_max", "hertz.P_d", -0.5]]\n',
+    )
+    result = optimize.reliability(optimize.parse_spec(text), None, "all", samples=200_000)
+    life, static = row(result, "life"), row(result, "static_capacity")
+    assert life["importance"]["loads.M_max"] < 1e-12
+    assert static["importance"]["hertz.P_d"] < 1e-12 and static["importance"]["loads.M_max"] > 0.01
+    lo, hi = life["mc_interval_95"]
+    assert lo <= life["probability_sorm"] <= hi
