@@ -16,6 +16,27 @@ from tripodjax.optimize import bench, report, sensitivity, solver
 from tripodjax.optimize.problem import bounds
 
 SPEC = optimize.load_spec()
+# The embedded default before the life chain (an illustrative spectrum, three conditions, the
+# seed's angle factor): its optimum, R 21.34 / d 27.76 mm, is where max_outer_diameter = 70.43
+# and 70.4413 are active with a small multiplier, the switching cases of issue 19.
+ILLUSTRATIVE = """
+[loads]
+M_max = 1154.0
+[life]
+angle_law = "seed"
+torque = [1154.0, 700.0, 350.0, 150.0]
+speed = [230.0, 400.0, 700.0, 1000.0]
+vehicle_speed = [28.0, 50.0, 90.0, 130.0]
+share = [0.02, 0.18, 0.45, 0.35]
+[life.conditions]
+names = ["main", "straight", "shock"]
+angle_deg = [6.5, 0.0, 12.8]
+share = [0.45, 0.20, 0.35]
+"""
+# Inputs at the closed end of their domain (a share of 1): only a one-sided change exists;
+# and the mode weights, whose sum must stay 1 (one alone cannot change).
+AT_DOMAIN_EDGE = ("vehicle.differential_locking", "vehicle.rear_torque_share")
+CONSTRAINED_SUM = "vehicle.modes.weight["
 STEP = 0.005  # ± 0.5 % of each input
 TIGHT = 1e-9  # the re-optimisations' KKT tolerance: their differences resolve 1e-4 of an elasticity
 
@@ -123,7 +144,11 @@ def test_default_spec_derivatives_agree_with_reoptimising(default_result):
     labels = list(sens["elasticities"])
     # An input that is zero has no relative change (e.g. the straight-running angle).
     labels = [
-        k for k in labels if np.ravel(SPEC.values[cells[k][0]][cells[k][1]])[cells[k][2] or 0] != 0
+        k
+        for k in labels
+        if np.ravel(SPEC.values[cells[k][0]][cells[k][1]])[cells[k][2] or 0] != 0
+        and k not in AT_DOMAIN_EDGE
+        and not k.startswith(CONSTRAINED_SUM)
     ]
     assert len(labels) >= 20
     _assert_agree(sens["elasticities"], _reoptimised_elasticities(SPEC, default_result, labels))
@@ -133,7 +158,7 @@ def test_default_spec_derivatives_agree_with_reoptimising(default_result):
 def test_a_constraint_about_to_switch_is_named_and_its_numbers_withheld(limit):
     # The envelope is active with a small multiplier: a fraction of a per cent of P_d or of
     # the limit deactivates it, so their derivatives would hold on one side only.
-    spec = optimize.parse_spec(f"[constraints]\nmax_outer_diameter = {limit}")
+    spec = optimize.parse_spec(f"{ILLUSTRATIVE}[constraints]\nmax_outer_diameter = {limit}")
     result = optimize.solve(spec, progress=False, sensitivities=True)
     sens = result.sensitivities
     assert "max_outer_diameter" in sens["active"]
@@ -161,7 +186,7 @@ def test_a_constraint_about_to_switch_is_named_and_its_numbers_withheld(limit):
 
 
 def test_switch_distance_predicts_where_the_active_set_changes():
-    spec = optimize.parse_spec("[constraints]\nmax_outer_diameter = 70.43")
+    spec = optimize.parse_spec(f"{ILLUSTRATIVE}[constraints]\nmax_outer_diameter = 70.43")
     result = optimize.solve(spec, progress=False, sensitivities=True)
     r = result.sensitivities["switch_distance"]["max_outer_diameter"]["hertz.P_d"]
     # Beyond the predicted change (in its direction) the multiplier is zero; before it, not.
