@@ -18,6 +18,8 @@
 import importlib
 import typing
 
+from tripodjax import _lazy
+
 # Imported on first use (PEP 562), so that ``optimize-joint`` starts without JAX (see
 # ``tripodjax/__init__.py``).
 _ATTRIBUTES = {
@@ -69,6 +71,9 @@ def __getattr__(name: str) -> typing.Any:
     value = getattr(importlib.import_module(f"tripodjax.optimize.{_ATTRIBUTES[name]}"), name)
     globals()[name] = value  # later look-ups skip this function
     return value
+
+
+_lazy.keep_functions(__name__, ["reliability"])
 
 
 def __dir__() -> list[str]:

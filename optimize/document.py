@@ -689,7 +689,7 @@ def spec_toml(spec, prefix=()):
         except NotAvailable as reason:
             lines.append(f"# {key}: not available ({reason}: not finite when written)")
     out = []
-    if prefix and lines:
+    if prefix and (lines or not tables_):  # an empty table keeps its header
         out.append(f"[{'.'.join(prefix)}]")
     out += lines
     for key, value in tables_:

@@ -553,8 +553,18 @@ def _unchecked_layouts(R, l, gamma0):
 @pytest.mark.parametrize(
     "call, fragment",
     [
-        (lambda: tj.sweep(_layouts(3), torque=np.full(3, 100.0), outputs=("gaf_rms",)), "shape ()"),
-        (lambda: tj.sweep(_layouts(3), torque=[100.0, 50.0], outputs=("gaf_rms",)), "shape ()"),
+        (
+            lambda: tj.sweep(
+                _layouts(3), gaf=tj.GAFInputs(torque=np.full(3, 100.0)), outputs=("gaf_rms",)
+            ),
+            "shape ()",
+        ),
+        (
+            lambda: tj.sweep(
+                _layouts(3), gaf=tj.GAFInputs(torque=[100.0, 50.0]), outputs=("gaf_rms",)
+            ),
+            "shape ()",
+        ),
         (lambda: tj.sweep(_layouts(3), n_theta=36, devices=[]), "devices = [] is empty"),
         (lambda: tj.sweep(_layouts(3), n_theta=36, devices=["cpu"]), "jax.Device"),
         (lambda: tj.sweep(_layouts(3), n_theta=36, devices=5), "devices"),

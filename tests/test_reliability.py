@@ -1,8 +1,8 @@
 """Uncertain spec numbers and the reliability of a design: FORM, SORM, Monte Carlo, importance
 sampling, chance constraints; OpenTURNS as the peer on a limit state both evaluate."""
 
+import importlib
 import math
-import sys
 
 import jax
 import jax.numpy as jnp
@@ -19,7 +19,9 @@ from tripodjax.optimize.problem import (
     requirement_structure,
 )
 
-rel = sys.modules["tripodjax.optimize.reliability"]  # the module (its function shares the name)
+rel = importlib.import_module(
+    "tripodjax.optimize.reliability"
+)  # the module (its function shares the name)
 
 # The issue's case: normal tolerances on R and d (σ 0.01 mm), the workbook's conformity range,
 # a 5 % scatter of P_d.

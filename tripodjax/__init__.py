@@ -24,9 +24,9 @@ Nothing here changes JAX's global configuration: enable float64 yourself with
 """
 
 import importlib
-import sys
-import types
 import typing
+
+from tripodjax import _lazy
 
 # The package's attributes are imported on first use (PEP 562): ``import tripodjax`` itself
 # loads neither JAX nor NumPy, so a command built on it (``optimize-joint``) installs its
@@ -95,16 +95,7 @@ def __getattr__(name: str) -> typing.Any:
     return value
 
 
-class _Package(types.ModuleType):
-    def __setattr__(self, name: str, value: typing.Any) -> None:
-        # Importing the submodule tripodjax.sweep binds the package's ``sweep`` to the module;
-        # the package's ``sweep`` is the function of that name (as ``from … import`` made it).
-        if name in _ATTRIBUTES and isinstance(value, types.ModuleType):
-            value = getattr(value, name)
-        super().__setattr__(name, value)
-
-
-sys.modules[__name__].__class__ = _Package
+_lazy.keep_functions(__name__, ["sweep"])
 
 
 def __dir__() -> list[str]:
