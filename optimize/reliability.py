@@ -83,7 +83,7 @@ def _hlrf(structure, values, x, j):
     u* ± h e_i of the curvature differences. Returns a dict of arrays.
     """
     n = len(structure.uncertainty)
-    dtype = values["loads"]["M_max"].dtype
+    dtype = values["hertz"]["P_d"].dtype
     eye = jnp.eye(n, dtype=dtype)
 
     def at(u):
