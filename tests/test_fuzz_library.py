@@ -566,6 +566,11 @@ def _unchecked_layouts(R, l, gamma0):
             "shape ()",
         ),
         (lambda: tj.sweep(_layouts(3), n_theta=36, devices=[]), "devices = [] is empty"),
+        (
+            lambda: tj.map_chunks(lambda x: x, {"x": np.ones(3)}, 2, devices=[]),
+            "devices = [] is empty",
+        ),
+        (lambda: tj.map_chunks(lambda x: x, {"x": np.ones(3)}, 2, devices=["cpu"]), "jax.Device"),
         (lambda: tj.sweep(_layouts(3), n_theta=36, devices=["cpu"]), "jax.Device"),
         (lambda: tj.sweep(_layouts(3), n_theta=36, devices=5), "devices"),
         (lambda: tj.sweep(_unchecked_layouts([], [], []), n_theta=36), "empty"),

@@ -15,7 +15,7 @@ One rule per domain, written once and called by every layer with its own names:
   [`Layout`][tripodjax.layout.Layout], [`sweep`][tripodjax.sweep.sweep] and the optimiser's spec;
 - `check_choice` — every mode/choice argument;
 - `check_shapes` — fields that broadcast together and are not empty (a Layout's);
-  `check_sweep_batch` — what a sweep's torque and devices must be beside its layouts.
+  `check_sweep_batch`, `check_devices` — what a sweep's torque and devices must be beside its layouts.
 
 Every error is a ``ValueError`` (or ``TypeError`` for a wrong type) that names
 the argument, the offending value (with its index inside an array) and what is
@@ -351,20 +351,11 @@ def check_shapes(shapes, prefix="", allowed="numbers, or arrays whose shapes bro
         raise ValueError(f"{owner} fields have shapes {listed}; allowed: {allowed}") from None
 
 
-def check_sweep_batch(n, torque, devices):
-    """A sweep of ``n`` layouts: at least one, one ``torque`` for all, a non-empty ``devices``.
+def check_devices(devices):
+    """``devices``: None (every visible device) or a non-empty sequence of ``jax.Device``.
 
-    ``torque`` (None or a number [N·m]) must have shape (): the same torque for every
-    layout. ``devices`` is None (every visible device) or a non-empty sequence of
-    ``jax.Device``. Returns the devices as a list.
+    Returns the devices as a list.
     """
-    if n < 1:
-        raise ValueError("layouts is empty (0 layouts); allowed: a Layout of at least one layout")
-    if torque is not None and not isinstance(torque, jax.core.Tracer) and np.ndim(torque) != 0:
-        raise ValueError(
-            f"torque has shape {np.shape(torque)}; allowed: one torque [N·m] for every layout "
-            "(a number, shape ())"
-        )
     if devices is None:
         return jax.devices()
     if isinstance(devices, (str, bytes)) or not isinstance(devices, typing.Iterable):
@@ -382,6 +373,22 @@ def check_sweep_batch(n, torque, devices):
             "sequence of jax.Device (e.g. jax.devices())"
         )
     return devices
+
+
+def check_sweep_batch(n, torque, devices):
+    """A sweep of ``n`` layouts: at least one, one ``torque`` for all, and
+    `check_devices`. Returns the devices as a list.
+
+    ``torque`` (None or a number [N·m]) must have shape (): the same torque for every layout.
+    """
+    if n < 1:
+        raise ValueError("layouts is empty (0 layouts); allowed: a Layout of at least one layout")
+    if torque is not None and not isinstance(torque, jax.core.Tracer) and np.ndim(torque) != 0:
+        raise ValueError(
+            f"torque has shape {np.shape(torque)}; allowed: one torque [N·m] for every layout "
+            "(a number, shape ())"
+        )
+    return check_devices(devices)
 
 
 # --------------------------------------------------------------------------- the layout domain

@@ -25,6 +25,7 @@ from jax.typing import ArrayLike
 from tripodjax import progress as progress_meters
 from tripodjax import solvers
 from tripodjax._checks import (
+    check_devices,
     check_instance,
     check_integer,
     check_layout_domain,
@@ -217,7 +218,7 @@ def map_chunks(
             f"map_chunks needs inputs whose leaves share one leading length; got shapes {shapes}"
         )
     n = lengths.pop()
-    devices = list(devices) if devices is not None else jax.devices()
+    devices = check_devices(devices)
     mesh = jax.sharding.Mesh(np.array(devices), ("rows",))
     sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("rows"))
     chunk = len(devices) * max(1, math.ceil(min(chunk_size, max(n, 1)) / len(devices)))
