@@ -7,7 +7,8 @@ numbers ([`perturb`][tripodjax.optimize.uncertainty.perturb] maps u to the numbe
 
 - FORM: the Hasofer–Lind index β = ±|u*| of the design point u* (the point of g = 0
   nearest the origin), by HL-RF iterations with a safeguarded step (the merit
-  ½|u|² + c|g| of Zhang & Der Kiureghian must decrease; the step halves until it does),
+  ½|u|² + c|g| of Zhang & Der Kiureghian must decrease by ARMIJO of its linear prediction;
+  the step halves until it does),
   exact gradients from JAX (forward mode through the implicit solves). P ≈ Φ(−β); the
   importance factors α_i² = (∂g/∂u_i)²/|∇g|² at u* (summing to 1) say which inputs
   matter (with a correlation, the same of the gradient w.r.t. the inputs' correlated
@@ -54,6 +55,7 @@ from tripodjax.results import RESULTS
 METHODS = ("form", "mc", "is", "all")
 MAX_ITERATIONS = 100  # HL-RF iterations (accepted steps)
 MAX_EVALUATIONS = 400  # model evaluations of one FORM search, backtracks included
+ARMIJO = 0.1  # sufficient decrease of the HL-RF merit, a fraction of its linear prediction
 TOLERANCE = 1e-6  # HL-RF stops when |u_HL − u| ≤ TOLERANCE · (1 + |u|)
 SORM_STEP = 1e-4  # central-difference step of the curvatures in u
 Z95 = 1.959963984540054  # Φ⁻¹(0.975)
@@ -122,6 +124,7 @@ def _hlrf(structure, values, x, j):
         d=zero,
         c=jnp.asarray(0.0, dtype),
         merit=jnp.asarray(jnp.inf, dtype),
+        slope=jnp.asarray(0.0, dtype),
         step=jnp.asarray(0.0, dtype),
         k=jnp.int32(0),
         evaluations=jnp.int32(0),
@@ -136,11 +139,20 @@ def _hlrf(structure, values, x, j):
         offset = sign * SORM_STEP * eye[jnp.minimum(s["i"] // 2, n - 1)]
         y = jnp.where(s["search"], s["u"] + s["step"] * s["d"], s["u"] + offset)
         g, grad, code = at(y)
-        # HL-RF: accept a trial when the merit decreases (always at the mean).
+        # HL-RF: accept a trial when the merit decreases by ARMIJO × the linear prediction
+        # (always at the mean); a plain decrease lets HL-RF oscillate across a limit state
+        # curved by κβ ≈ 1, each full step a little lower than the last.
+        trial = merit(y, g, s["c"])
         accepted = s["search"] & (
-            s["start"] | ((merit(y, g, s["c"]) < s["merit"]) & jnp.all(jnp.isfinite(grad)))
+            s["start"]
+            | (
+                (trial < s["merit"])
+                & (trial <= s["merit"] + ARMIJO * s["step"] * s["slope"])
+                & jnp.all(jnp.isfinite(grad))
+            )
         )
         d, c = direction(y, g, grad)
+        slope = jnp.minimum(jnp.dot(y + c * jnp.sign(g) * grad, d), 0.0)  # ∇merit · d
         small = jnp.linalg.norm(d) <= TOLERANCE * (1.0 + jnp.linalg.norm(y))
         flat = s["start"] & ~(jnp.dot(grad, grad) > 0)  # g does not depend on u
         converged = s["converged"] | (accepted & small) | flat
@@ -169,6 +181,7 @@ def _hlrf(structure, values, x, j):
             d=keep(d, s["d"]),
             c=keep(c, s["c"]),
             merit=keep(merit(y, g, c), s["merit"]),
+            slope=keep(slope, s["slope"]),
             step=jnp.where(accepted, 1.0, 0.5 * s["step"]),
             k=k,
             evaluations=evaluations,

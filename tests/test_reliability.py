@@ -479,6 +479,46 @@ def test_chance_constraint_design_meets_its_probability_and_no_more():
     assert row(at_optimum, "life")["probability_form"] > 0.5
 
 
+def test_form_converges_where_the_limit_state_is_curved_by_one_over_beta():
+    """At R 40, d 55 mm the life's limit state is curved by κβ ≈ 1: full HL-RF steps alternate
+    across the design point, each a little lower in merit (100 steps, not converged, before
+    the Armijo rule); with it the step halves and HL-RF converges. β against an independent
+    search (scipy SLSQP on min |u|² subject to g(u) = 0, the margin as the peer's callback)."""
+    from scipy import optimize as scipy_optimize
+
+    spec = optimize.parse_spec(TOLERANCES + WIDE_BOUNDS)
+    design = {"R": 40.0, "d_roller": 55.0}
+    life = row(optimize.reliability(spec, design, "form"), "life")
+    assert life["form_converged"] and life["form_iterations"] < 30
+    g = _life_margin_batch(spec)
+
+    def physical(u):
+        return [
+            40.0 + 0.01 * u[0],
+            55.0 + 0.01 * u[1],
+            1.002 + 0.006 * stats.norm.cdf(u[2]),
+            1347.0 * (1.0 + 0.05 * u[3]),
+        ]
+
+    def gradient(u, h=1e-5):  # central differences, one batch
+        steps = np.concatenate([np.eye(4), -np.eye(4)]) * h
+        values = g([physical(u + e) for e in steps])
+        return (values[:4] - values[4:]) / (2 * h)
+
+    point = [life["design_point"][k] for k in ("R", "d_roller", "conformity", "hertz.P_d")]
+    assert abs(g([point])[0]) < 1e-9
+    search = scipy_optimize.minimize(
+        lambda u: 0.5 * float(u @ u),
+        np.array([0.0, 0.0, 1.0, -1.7]),
+        jac=lambda u: u,
+        constraints=[{"type": "eq", "fun": lambda u: g([physical(u)])[0], "jac": gradient}],
+        method="SLSQP",
+        options={"ftol": 1e-9, "maxiter": 200},
+    )
+    assert search.success
+    assert life["beta_form"] == pytest.approx(np.linalg.norm(search.x), rel=1e-5)
+
+
 def test_cli_reliability_table_with_the_default_tolerances(tmp_path):
     from test_optimize_cli import run_cli, strict_json
 
