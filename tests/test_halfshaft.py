@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import reference
 
-from tripodjax import Layout, seed_case, solve_halfshaft, solvers
+from tripodjax import Layout, halfshaft, seed_case, solve_halfshaft, solvers
 from tripodjax.halfshaft import scaled_jacobian, scaled_residual
 from tripodjax.results import RESULTS
 from tripodjax.solvers import Analytic, Newton, SolverError
@@ -162,12 +162,43 @@ def test_newton_iterations_stay_few_over_the_domain():
     ratio, g0 = rng.uniform(0, 0.2, 60), rng.uniform(0, np.pi / 4, 60)
     ratio[0], g0[0] = 0.2, np.pi / 4
     layout = Layout(100.0 * ratio[:, None], 100.0, g0[:, None])
-    for dtype, most in ((np.float64, 5), (np.float32, 3)):
+    for dtype in (np.float64, np.float32):
         theta = np.linspace(0, 2 * np.pi / 3, 40, dtype=dtype)
         lay = Layout(*(np.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0)))
         sol = solve_halfshaft(lay, theta)
         assert (np.asarray(sol.result) == RESULTS.successful).all()
-        assert int(np.max(sol.iterations)) <= most
+        # The polynomial steps, then one exact step that confirms the point everywhere.
+        assert int(np.max(sol.iterations)) == halfshaft.POLYNOMIAL_STEPS + 1
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_polynomial_stage_changes_no_digit_and_falls_back_outside_its_range(dtype):
+    """The answer equals Newton with the exact sines alone (to roundoff) inside the domain, and
+    point whose small angles leave the polynomials' range (R/l = 0.4, γ0 = 45°: outside the
+    layout domain, where (γ − γ0)/2 reaches 0.13) restarts from the closed form and still
+    solves the exact pair."""
+    rng = np.random.default_rng(3)
+    R = np.concatenate([100.0 * rng.uniform(0, 0.2, 30), [40.0]]).astype(dtype)[:, None]
+    g0 = np.concatenate([rng.uniform(0, np.pi / 4, 30), [np.pi / 4]]).astype(dtype)[:, None]
+    l = np.asarray(100.0, dtype)
+    theta = np.linspace(0, 2 * np.pi / 3, 24, dtype=dtype)[None, :]
+    rtol = halfshaft.default_rtol(dtype)
+    x, steps, result = halfshaft._newton(R, l, g0, theta, rtol, 24)
+    consts = halfshaft.layout_constants(jnp, R, l, g0, theta)
+    guess = jnp.stack(jnp.broadcast_arrays(*halfshaft.analytic_unknowns(jnp, consts, theta)))
+    scale = halfshaft.first_order_amplitude(consts)
+    exact, exact_steps, done, _ = halfshaft._iterate(
+        consts, scale, rtol, guess, 24, 24, small_angles=False
+    )
+    assert bool(jnp.all(done)) and (np.asarray(result) == RESULTS.successful).all()
+    far = jnp.maximum(jnp.abs(0.5 * x[0, -1]), jnp.abs(consts["half0"][-1] * x[1, -1]))
+    assert float(jnp.max(far)) > halfshaft.POLYNOMIAL_LIMIT
+    out = np.asarray(far > halfshaft.POLYNOMIAL_LIMIT)  # restarted: the exact Newton's own steps
+    np.testing.assert_array_equal(np.asarray(steps[-1])[out], np.asarray(exact_steps[-1])[out])
+    # Both stop once a step is below rtol · (max(|Δ|, |v|) + scale): they agree within that.
+    for k in range(2):
+        tolerance = rtol * (float(jnp.max(jnp.abs(exact))) + float(jnp.max(scale)))
+        np.testing.assert_allclose(x[k], exact[k], rtol=0, atol=tolerance)
 
 
 @pytest.mark.parametrize(

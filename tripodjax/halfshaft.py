@@ -234,41 +234,86 @@ def _nonfinite_inputs(R, l, gamma0, theta):
     )
 
 
-def _newton(R, l, gamma0, theta, rtol, max_steps):
-    """Newton iterations from the closed form, elementwise; returns (Δ, v) stacked, steps, result."""
-    consts = layout_constants(jnp, R, l, gamma0, theta)
-    scale = first_order_amplitude(consts)
-    tiny = jnp.finfo(theta.dtype).tiny
-    bad_input = _nonfinite_inputs(R, l, gamma0, theta)
-    shape = bad_input.shape
-    guess = jnp.stack([jnp.broadcast_to(u, shape) for u in analytic_unknowns(jnp, consts, theta)])
-    zeros = jnp.zeros(shape, bool)
+# The polynomial sines of small_angle_sincos are exact to float64 roundoff for |x| ≤ 0.1 (the
+# first omitted term, x¹¹/11!, is 2.5e-19 of x there); over the domain |Δ/2| ≤ 0.03.
+POLYNOMIAL_LIMIT = 0.1
+POLYNOMIAL_STEPS = 4  # from the closed form; with 4 one exact step then confirms every point of the domain (measured)
+
+
+def _iterate(consts, scale, rtol, x, limit, max_steps, small_angles):
+    """Newton steps on the stacked (Δ, v) until each point's step is small or it has made
+    ``limit`` steps (per point); returns (x, steps, done, singular)."""
+    shape = x.shape[1:]
+    tiny = jnp.finfo(x.dtype).tiny
+
+    def active_of(steps, done):
+        return jnp.logical_not(done) & (steps < limit)
 
     def cond(carry):
-        n, _, _, done, _ = carry
-        return jnp.logical_and(n < max_steps, jnp.logical_not(jnp.all(done)))
+        n, _, steps, done, _ = carry
+        return jnp.logical_and(n < max_steps, jnp.any(active_of(steps, done)))
 
     def body(carry):
         # (Δ, v) travel stacked in one array: XLA then computes the step in one
         # fusion instead of repeating the sines in one fusion per output.
         n, x, steps, done, singular = carry
-        d_delta, d_v = newton_step(*scaled_system(jnp, consts, x[0], x[1]))
+        d_delta, d_v = newton_step(*scaled_system(jnp, consts, x[0], x[1], small_angles))
         new = jnp.stack([x[0] + d_delta, x[1] + d_v])
         step = jnp.max(jnp.abs(new - x), axis=0)
         small = step <= rtol * (jnp.max(jnp.abs(new), axis=0) + scale) + tiny
         # A non-finite step ends the point: a singular Jacobian (finite iterate), or NaN input.
         broken = ~jnp.all(jnp.isfinite(new), axis=0)
-        active = jnp.logical_not(done)
+        active = active_of(steps, done)
         return (
             n + 1,
-            jnp.where(done, x, new),
+            jnp.where(active, new, x),
             steps + active.astype(jnp.int32),
-            done | small | broken,
+            done | (active & (small | broken)),
             singular | (active & broken & jnp.all(jnp.isfinite(x), axis=0)),
         )
 
-    start = (jnp.int32(0), guess, jnp.zeros(shape, jnp.int32), zeros, zeros)
+    zeros = jnp.zeros(shape, bool)
+    start = (jnp.int32(0), x, jnp.zeros(shape, jnp.int32), zeros, zeros)
     _, x, steps, done, singular = jax.lax.while_loop(cond, body, start)
+    return x, steps, done, singular
+
+
+def _newton(R, l, gamma0, theta, rtol, max_steps):
+    """Newton iterations from the closed form, elementwise; returns (Δ, v) stacked, steps, result.
+
+    Two stages within ``max_steps`` steps in all. First ``POLYNOMIAL_STEPS`` Newton steps on
+    the pair with the polynomial sines of [`small_angle_sincos`][tripodjax.halfshaft.small_angle_sincos]:
+    plain arithmetic, unrolled (no test between them, so XLA fuses them into one pass), where an
+    exact step costs four transcendental functions. Then Newton with the exact sines from that
+    answer until the step is below tolerance: at a converged point this is one step that changes
+    nothing, so the answer and the status are those of the exact pair. A point whose small
+    angles leave the polynomials' range (|Δ/2| or |γ − γ0|/2 above ``POLYNOMIAL_LIMIT``) or whose
+    first stage is not finite starts the second from the closed form instead.
+    """
+    consts = layout_constants(jnp, R, l, gamma0, theta)
+    scale = first_order_amplitude(consts)
+    bad_input = _nonfinite_inputs(R, l, gamma0, theta)
+    shape = bad_input.shape
+    guess = jnp.stack([jnp.broadcast_to(u, shape) for u in analytic_unknowns(jnp, consts, theta)])
+    x, used = guess, jnp.zeros(shape, jnp.int32)
+    polynomial_steps = min(POLYNOMIAL_STEPS, max_steps - 1)  # leave the exact stage one step
+    if polynomial_steps:
+        delta, v = guess[0], guess[1]
+        for _ in range(polynomial_steps):
+            d_delta, d_v = newton_step(*scaled_system(jnp, consts, delta, v, small_angles=True))
+            delta, v = delta + d_delta, v + d_v
+        keep = (
+            (jnp.abs(0.5 * delta) <= POLYNOMIAL_LIMIT)
+            & (jnp.abs(consts["half0"] * v) <= POLYNOMIAL_LIMIT)
+            & jnp.isfinite(delta)
+            & jnp.isfinite(v)
+        )
+        x = jnp.where(keep, jnp.stack([delta, v]), guess)
+        used = jnp.where(keep, polynomial_steps, 0)
+    x, steps, done, singular = _iterate(
+        consts, scale, rtol, x, max_steps - used, max_steps, small_angles=False
+    )
+    steps = used + steps
     result = code_where(done, RESULTS.successful, RESULTS.max_steps_reached)
     result = code_where(singular & ~bad_input, RESULTS.singular_jacobian, result)
     nonfinite = bad_input | ~jnp.all(jnp.isfinite(x), axis=0)
