@@ -8,7 +8,8 @@ augmented Lagrangian
     L(z; λ, ρ) = f(x) + Σ_i [max(0, λ_i − ρ c_i)² − λ_i²] / (2ρ),
 
 minimised over z by ``optax.lbfgs`` (backtracking line search) for at most
-``inner_steps`` iterations (fewer once |∂L/∂z| ≤ tolerance/10), after which λ_i ← max(0, λ_i − ρ c_i) and ρ grows
+``inner_steps`` iterations (fewer once |∂L/∂z| ≤ tolerance/10; where L-BFGS offers no
+descent direction, a steepest-descent step of unit length in z), after which λ_i ← max(0, λ_i − ρ c_i) and ρ grows
 while the constraints stay violated. Each outer iteration evaluates the
 objective, the margins and their Jacobian once (forward mode through the
 implicit halfshaft solve) and stops a problem when its KKT residual — the
@@ -218,9 +219,14 @@ def solve_problem(structure, values, z0, x_eval=None, evaluate_only=False):
         direction, new_memory = lbfgs.update(grad, memory, z)
         direction = -direction
         slope = jnp.dot(grad, direction)
+        # Not a descent direction (negative curvature in the memory, as where sigmoid(z) bends
+        # towards a bound): steepest descent of unit length in z, so that the line search
+        # starts at a step of the sigmoid's own scale however small the gradient.
         descent = slope < 0
-        direction = jnp.where(descent, direction, -grad)
-        slope = jnp.where(descent, slope, -jnp.dot(grad, grad))
+        norm = jnp.sqrt(jnp.dot(grad, grad))
+        unit = -grad / jnp.where(norm > 0, norm, 1.0)
+        direction = jnp.where(descent, direction, unit)
+        slope = jnp.where(descent, slope, -norm)
         k = s["k"]
         return dict(
             start=jnp.bool_(False),
@@ -411,12 +417,13 @@ def run(
 def _choose(out, tolerance):
     """The start to report: feasible and converged first, then the lowest objective."""
     feasible = np.min(out["margins"], axis=-1) >= -tolerance
-    score = np.where(feasible, out["objective"], np.inf) + np.where(
-        out["kkt"] <= tolerance, 0.0, 1e-9
-    )
-    violation = np.maximum(0.0, -np.min(out["margins"], axis=-1))
-    score = np.where(np.isfinite(score), score, 1e6 + 1e6 * np.nan_to_num(violation, nan=1e9))
-    return int(np.argmin(score))
+    converged = feasible & (out["kkt"] <= tolerance)
+    objective = np.where(np.isfinite(out["objective"]), out["objective"], np.inf)
+    violation = np.nan_to_num(np.maximum(0.0, -np.min(out["margins"], axis=-1)), nan=np.inf)
+    # Converged and feasible first (a feasible start that stopped short may sit lower within
+    # the tolerance), then feasible, each by objective; then the least violation.
+    order = np.lexsort((violation, np.where(feasible, objective, np.inf), ~feasible, ~converged))
+    return int(order[0])
 
 
 def _design_dict(structure, x):
