@@ -273,16 +273,16 @@ def _compute(args, spec, command_line):
     from tripodjax.optimize.solver import _with, run
 
     progress = {"auto": None, "on": True, "off": False}[args.progress]
-    pareto_weights = []
+    pareto_weights, weight = [], None
     if "gaf_rms" in spec.structure.objective:
         weight = float(spec.values["objective"]["w_gaf_rms"])
         pareto_weights = (
             [weight * f for f in PARETO_FACTORS] if weight > 0 else [0.0, 0.5, 1.0, 2.0, 4.0]
         )
-    # One batch: the spec's own problem and the Pareto members.
-    scenarios = [spec.values] + [
-        _with(spec.values, "objective", w_gaf_rms=w) for w in pareto_weights
-    ]
+    # One batch: the spec's own problem and the Pareto members other than the spec's own weight
+    # (that member is the spec's own result).
+    members = [w for w in pareto_weights if w != weight]
+    scenarios = [spec.values] + [_with(spec.values, "objective", w_gaf_rms=w) for w in members]
     # The catalogue, the landscape and the sensitivities evaluate points through the solve's
     # own compiled program (evaluate-only rows of the same batch size): one program, not two.
     # The full-fidelity check is a second, smaller program: on a cold cache it compiles in a
@@ -290,7 +290,7 @@ def _compute(args, spec, command_line):
     full_reference = None
     if spec.structure.fidelity != "newton" or spec.structure.n_theta != 360:
         full_reference = spec.replace_values(solver={"fidelity": "newton", "n_theta": 360})
-    # Jinja2, openpyxl and the report templates load beside the solve (report.html, .xlsx).
+    # Matplotlib, Jinja2, openpyxl and the report templates load beside the solve.
     threading.Thread(target=document.prepare, daemon=True).start()
     pool = ThreadPoolExecutor(max_workers=1)
     rows = len(scenarios) * spec.structure.starts
@@ -301,7 +301,8 @@ def _compute(args, spec, command_line):
                 run_in_context = contextvars.copy_context().run
                 warm = pool.submit(run_in_context, evaluate, full_reference, _mid_box(spec))
             results = run(spec, scenarios, progress)
-            result, pareto = results[0], list(zip(pareto_weights, results[1:], strict=True))
+            result, by_weight = results[0], dict(zip(members, results[1:], strict=True))
+            pareto = [(w, by_weight.get(w, result)) for w in pareto_weights]
             catalogue, choice = evaluate_catalogue(spec)
             landscape = constraint_landscape(spec, *_landscape_axes(spec, catalogue))
             if result.converged:  # derivatives of an optimum, not of an unfinished point

@@ -808,8 +808,12 @@ def render_html(report, figures=None) -> str:
 
 
 def prepare():
-    """Import Jinja2 and openpyxl and compile the templates now (``optimize-joint`` does it in
-    a thread beside the solve, so that writing the report later waits for neither)."""
+    """Import Matplotlib's figure and PNG writer, Jinja2 and openpyxl and compile the templates
+    now (``optimize-joint`` does it in a thread beside the solve, so that drawing and writing the
+    report later waits for none of them)."""
+    import matplotlib.backends.backend_agg  # noqa: F401
+    import matplotlib.figure  # noqa: F401
+
     env = _environment()
     for name in ("report.html.j2", "compare.html.j2"):
         env.get_template(name)
