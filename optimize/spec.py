@@ -128,7 +128,7 @@ outer_diameter_ref = 94.6  # outer-diameter proxy 2R + d of the workbook joint [
 # section ([design], [layout], [hertz], [friction]). Free-able: R, d_roller [mm], l [mm],
 # gamma0_deg [deg], conformity, lam, mu_slp. "fixed" removes a default interval.
 R = [15.0, 40.0]         # track pitch-circle radius [mm]
-d_roller = [20.0, 50.0]  # roller diameter [mm]
+d_roller = [20.0, 70.0]  # roller diameter [mm]
 
 [constraints]
 # max_<q> / min_<q> for any quantity q; the Hertz static capacity (≥ shock_factor · M_max)

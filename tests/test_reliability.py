@@ -439,11 +439,6 @@ def test_non_finite_samples_count_as_misses():
     assert row(result, "life")["probability_mc"] >= status["mc_nonfinite_samples"] / 20_000
 
 
-# The Done-when's chance-constrained design needs a larger roller than the default box allows
-# (d_roller ≤ 50 mm: P ≈ 0.11 at its corner); this box holds it (R/l ≤ 0.12 at l = 500 mm).
-WIDE_BOUNDS = "[bounds]\nR = [15.0, 60.0]\nd_roller = [20.0, 70.0]\n"
-
-
 def test_chance_constraint_design_meets_its_probability_and_no_more():
     """The Done-when: the default tolerances, the default 100 000 km, max_failure_probability_life
     = 1e-3: the design's Monte Carlo probability (10⁵ samples) is ≤ 1e-3 with its whole 95 %
@@ -453,14 +448,12 @@ def test_chance_constraint_design_meets_its_probability_and_no_more():
     93.5 mm for the deterministic optimum (R 26.05, d 41.35 mm), which misses the life with
     P ≈ 0.96 under these tolerances. FORM's 1e-3 is conservative here: SORM ≈ 6.2·10⁻⁴ and the
     Monte Carlo 6.5·10⁻⁴."""
-    spec = optimize.parse_spec(
-        TOLERANCES + "[constraints]\nmax_failure_probability_life = 1e-3\n" + WIDE_BOUNDS
-    )
+    spec = optimize.parse_spec(TOLERANCES + "[constraints]\nmax_failure_probability_life = 1e-3\n")
     result = optimize.solve(spec, progress=False)
     assert result.converged and result.feasible
     pma = result.constraints["max_failure_probability_life"]
     assert abs(pma["margin"]) < 1e-3 and result.multipliers["max_failure_probability_life"] > 0
-    assert result.design["d_roller"] > 50.0  # outside the default box
+    assert result.design["d_roller"] > 50.0  # a roller the former default box (d ≤ 50 mm) lacked
     design = {k: result.design[k] for k in spec.structure.free}
     check = optimize.reliability(spec, design, "all", samples=100_000)
     life = row(check, "life")
@@ -470,7 +463,7 @@ def test_chance_constraint_design_meets_its_probability_and_no_more():
     assert life["agree"]  # SORM within the Monte Carlo interval
     # Larger than the deterministic optimum, which misses the life most of the time (it meets it
     # only near the nominal conformity 1.002, the best end of the range).
-    deterministic = optimize.solve(optimize.parse_spec(TOLERANCES + WIDE_BOUNDS), progress=False)
+    deterministic = optimize.solve(optimize.parse_spec(TOLERANCES), progress=False)
     assert abs(deterministic.constraints["life"]["margin"]) < 1e-3  # life-bound
     assert result.quantities["outer_diameter"] > deterministic.quantities["outer_diameter"]
     at_optimum = optimize.reliability(
@@ -486,7 +479,7 @@ def test_form_converges_where_the_limit_state_is_curved_by_one_over_beta():
     search (scipy SLSQP on min |u|² subject to g(u) = 0, the margin as the peer's callback)."""
     from scipy import optimize as scipy_optimize
 
-    spec = optimize.parse_spec(TOLERANCES + WIDE_BOUNDS)
+    spec = optimize.parse_spec(TOLERANCES)
     design = {"R": 40.0, "d_roller": 55.0}
     life = row(optimize.reliability(spec, design, "form"), "life")
     assert life["form_converged"] and life["form_iterations"] < 30
