@@ -33,8 +33,8 @@ the revolutions that no case claims (1 − Σ share, e.g. cruising and coasting)
 case of zero torque at the revolution-weighted mean speed of the others; time
 shares follow as a_i ∝ revolutions_i / n_i. The life in km is then the
 revolutions the cycle lasts times 2π r (independent of the speeds). With the
-workbook's vehicle and M_d = 1507 N·m it is 240 600 km at 0° (the sheet:
-244 574 km, −1.6 %). The sheet's hours (2148 h) come from 4.2.1 with the
+workbook's vehicle and M_d = 1507 N·m it is 240 311 km at 0° (the sheet:
+244 574 km, −1.7 %). The sheet's hours (2148 h) come from 4.2.1 with the
 revolution shares taken as time shares (that gives 2140 h, −0.4 %), which its own
 4.2.3 does not support; here the hours are km / V_m with V_m the time-weighted
 mean speed (4.2.3): about 2500 h, V_m about 96 km/h (the sheet: 113.9 km/h).
