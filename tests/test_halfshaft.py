@@ -295,3 +295,26 @@ def test_float32_keeps_the_small_unknowns_accurate(float32_default):
     # Δ is solved for directly: its float32 error is a few ε of Δ's own size,
     # not ε·θ as it would be from θ − ψ.
     assert np.abs(np.asarray(sol32.delta, np.float64) - delta64).max() < 2e-5 * amplitude
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_error_estimate_from_polynomial_sines_equals_the_exact_one(dtype):
+    """Analytic's status comes from an estimate formed with the polynomial sines (no
+    transcendental function): over the domain it is the exact-sine estimate to roundoff, and
+    infinite (outside validity) where the small angles leave the polynomials' range."""
+    rng = np.random.default_rng(5)
+    R = (100.0 * rng.uniform(0, 0.2, 40)).astype(dtype)[:, None]
+    g0 = rng.uniform(0, np.pi / 4, 40).astype(dtype)[:, None]
+    R[0, 0], g0[0, 0] = 20.0, np.pi / 4  # the corner
+    l = np.asarray(100.0, dtype)
+    theta = np.linspace(0, 2 * np.pi / 3, 16, dtype=dtype)[None, :]
+    delta, v = halfshaft._analytic(R, l, g0, theta, 1)  # errors of ~1e-6: a step to measure
+    _, exact = halfshaft._diagnostics(R, l, g0, theta, delta, v)
+    _, polynomial = halfshaft._diagnostics(R, l, g0, theta, delta, v, small_angles=True)
+    # The estimate is a step relative to the amplitude: roundoff of the dtype in those units
+    # (measured: 2.7 eps in float64, 3.9 eps in float32, estimates up to 8e-3 at the corner).
+    assert float(jnp.max(exact)) > 1e-3
+    np.testing.assert_allclose(polynomial, exact, rtol=0, atol=8 * np.finfo(dtype).eps)
+    far = jnp.full_like(delta, 0.25)  # |Δ/2| = 0.125 > POLYNOMIAL_LIMIT
+    _, outside = halfshaft._diagnostics(R, l, g0, theta, far, v, small_angles=True)
+    assert bool(jnp.all(jnp.isinf(outside)))

@@ -369,20 +369,28 @@ def _analytic(R, l, gamma0, theta, corrections):
     return delta, v
 
 
-def _diagnostics(R, l, gamma0, theta, delta, v):
+def _diagnostics(R, l, gamma0, theta, delta, v, small_angles=False):
     """Scaled residual (…, 2) and error estimate at (Δ, v), not differentiated.
 
-    The estimate is the next Newton step (exact sines), max(|dΔ|, |dv|),
-    relative to the first-order amplitude e(γ0)/|h| of Δ: the relative error
-    of the small unknowns, to first order in it.
+    The estimate is the next Newton step, max(|dΔ|, |dv|), relative to the
+    first-order amplitude e(γ0)/|h| of Δ: the relative error of the small
+    unknowns, to first order in it. With ``small_angles`` the step uses the
+    polynomial sines (no transcendental function; equal to the exact step to
+    roundoff while |Δ/2| and |γ − γ0|/2 are at most ``POLYNOMIAL_LIMIT``, and
+    an infinite estimate where they are not).
     """
     delta, v = jax.lax.stop_gradient(delta), jax.lax.stop_gradient(v)
     R, l, gamma0, theta = (jax.lax.stop_gradient(a) for a in (R, l, gamma0, theta))
     consts = layout_constants(jnp, R, l, gamma0, theta)
-    residual, jacobian = scaled_system(jnp, consts, delta, v)
+    residual, jacobian = scaled_system(jnp, consts, delta, v, small_angles)
     d_delta, d_v = newton_step(residual, jacobian)
     scale = jnp.maximum(first_order_amplitude(consts), jnp.finfo(delta.dtype).tiny)
     estimate = jnp.maximum(jnp.abs(d_delta), jnp.abs(d_v)) / scale
+    if small_angles:
+        outside = (jnp.abs(0.5 * delta) > POLYNOMIAL_LIMIT) | (
+            jnp.abs(consts["half0"] * v) > POLYNOMIAL_LIMIT
+        )
+        estimate = jnp.where(outside, jnp.inf, estimate)
     estimate = jnp.where(jnp.isfinite(d_delta) & jnp.isfinite(d_v), estimate, jnp.nan)
     return jnp.stack(jnp.broadcast_arrays(*residual), axis=-1), estimate
 
@@ -503,7 +511,9 @@ def _solve_period(layout, theta, solver):
     # The error estimate where the answer is formed and where the interpolation errs most: at
     # the nodes and midway between them (2·nodes angles, not every grid angle; one per period).
     sample_theta = jnp.asarray(np.arange(2 * nodes) * (0.5 * spacing), theta.dtype)
-    _, estimate = _diagnostics(R, l, gamma0, sample_theta, *interpolate(sample_theta))
+    _, estimate = _diagnostics(
+        R, l, gamma0, sample_theta, *interpolate(sample_theta), small_angles=True
+    )
     # The residual at every angle is computed only where it is used (max_residual).
     residual, _ = _diagnostics(R, l, gamma0, theta, delta, v)
     # The interpolated answer is finite wherever the node values are.
