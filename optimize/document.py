@@ -362,11 +362,15 @@ def _damage(report):
         Column("engine condition", kind="text"),
         Column("share of the damage", "–"),
     ]
+
+    def text(value):  # an explicit spectrum's cases have no mode, gear or engine condition
+        return "" if value is None else str(value)
+
     rows = [
         [
-            str(d.get("mode", "")),
-            str(d.get("gear", "")),
-            str(d.get("engine_condition", "")),
+            text(d.get("mode")) if "case" not in d else f"case {d['case']}",
+            text(d.get("gear")),
+            text(d.get("engine_condition")),
             cell(d.get("damage_share")),
         ]
         for d in _get(life, "damage_by_case")

@@ -245,6 +245,17 @@ def test_optional_sections_synthetic_tables_hold_their_numbers(run):
     tables = document.tables(with_sections(body))
     assert [r[4] for r in tables["life"].rows] == [c["damage_share"] for c in LIFE["conditions"]]
     assert [r[3] for r in tables["damage"].rows] == [0.75, 0.25]
+    # An explicit spectrum's cases: their index, no "None" for mode, gear or engine condition.
+    explicit = dict(
+        LIFE,
+        damage_by_case=[
+            {"mode": None, "gear": None, "engine_condition": None, "case": i, "damage_share": d}
+            for i, d in enumerate((0.6, 0.4))
+        ],
+    )
+    body_explicit = dict(with_sections(body), life=explicit)
+    rows = document.tables(body_explicit)["damage"].rows
+    assert [r[:3] for r in rows] == [["case 0", "", ""], ["case 1", "", ""]]
     row = tables["reliability"].rows[0]
     assert row[:7] == ["life", 2.345, 0.00951, 0.0102, 0.0085, 0.0121, 20000.0]
     assert "loads.M_max (0.98)" in row[8]
