@@ -187,9 +187,7 @@ def test_polynomial_stage_changes_no_digit_and_falls_back_outside_its_range(dtyp
     consts = halfshaft.layout_constants(jnp, R, l, g0, theta)
     guess = jnp.stack(jnp.broadcast_arrays(*halfshaft.analytic_unknowns(jnp, consts, theta)))
     scale = halfshaft.first_order_amplitude(consts)
-    exact, exact_steps, done, _ = halfshaft._iterate(
-        consts, scale, rtol, guess, 24, 24, small_angles=False
-    )
+    exact, exact_steps, done, _ = halfshaft._iterate(consts, scale, rtol, guess, 24, 24)
     assert bool(jnp.all(done)) and (np.asarray(result) == RESULTS.successful).all()
     far = jnp.maximum(jnp.abs(0.5 * x[0, -1]), jnp.abs(consts["half0"][-1] * x[1, -1]))
     assert float(jnp.max(far)) > halfshaft.POLYNOMIAL_LIMIT

@@ -240,9 +240,16 @@ POLYNOMIAL_LIMIT = 0.1
 POLYNOMIAL_STEPS = 4  # from the closed form; with 4 one exact step then confirms every point of the domain (measured)
 
 
-def _iterate(consts, scale, rtol, x, limit, max_steps, small_angles):
-    """Newton steps on the stacked (Δ, v) until each point's step is small or it has made
-    ``limit`` steps (per point); returns (x, steps, done, singular)."""
+def _in_polynomial_range(consts, delta, v):
+    """Where the small angles Δ/2 and (γ − γ0)/2 = (γ0/2)·v are within ``POLYNOMIAL_LIMIT``."""
+    return (jnp.abs(0.5 * delta) <= POLYNOMIAL_LIMIT) & (
+        jnp.abs(consts["half0"] * v) <= POLYNOMIAL_LIMIT
+    )
+
+
+def _iterate(consts, scale, rtol, x, limit, max_steps):
+    """Newton steps (exact sines) on the stacked (Δ, v) until each point's step is small or it
+    has made ``limit`` steps (per point); returns (x, steps, done, singular)."""
     shape = x.shape[1:]
     tiny = jnp.finfo(x.dtype).tiny
 
@@ -257,7 +264,7 @@ def _iterate(consts, scale, rtol, x, limit, max_steps, small_angles):
         # (Δ, v) travel stacked in one array: XLA then computes the step in one
         # fusion instead of repeating the sines in one fusion per output.
         n, x, steps, done, singular = carry
-        d_delta, d_v = newton_step(*scaled_system(jnp, consts, x[0], x[1], small_angles))
+        d_delta, d_v = newton_step(*scaled_system(jnp, consts, x[0], x[1]))
         new = jnp.stack([x[0] + d_delta, x[1] + d_v])
         step = jnp.max(jnp.abs(new - x), axis=0)
         small = step <= rtol * (jnp.max(jnp.abs(new), axis=0) + scale) + tiny
@@ -302,17 +309,10 @@ def _newton(R, l, gamma0, theta, rtol, max_steps):
         for _ in range(polynomial_steps):
             d_delta, d_v = newton_step(*scaled_system(jnp, consts, delta, v, small_angles=True))
             delta, v = delta + d_delta, v + d_v
-        keep = (
-            (jnp.abs(0.5 * delta) <= POLYNOMIAL_LIMIT)
-            & (jnp.abs(consts["half0"] * v) <= POLYNOMIAL_LIMIT)
-            & jnp.isfinite(delta)
-            & jnp.isfinite(v)
-        )
+        keep = _in_polynomial_range(consts, delta, v) & jnp.isfinite(delta) & jnp.isfinite(v)
         x = jnp.where(keep, jnp.stack([delta, v]), guess)
         used = jnp.where(keep, polynomial_steps, 0)
-    x, steps, done, singular = _iterate(
-        consts, scale, rtol, x, max_steps - used, max_steps, small_angles=False
-    )
+    x, steps, done, singular = _iterate(consts, scale, rtol, x, max_steps - used, max_steps)
     steps = used + steps
     result = code_where(done, RESULTS.successful, RESULTS.max_steps_reached)
     result = code_where(singular & ~bad_input, RESULTS.singular_jacobian, result)
@@ -387,9 +387,7 @@ def _diagnostics(R, l, gamma0, theta, delta, v, small_angles=False):
     scale = jnp.maximum(first_order_amplitude(consts), jnp.finfo(delta.dtype).tiny)
     estimate = jnp.maximum(jnp.abs(d_delta), jnp.abs(d_v)) / scale
     if small_angles:
-        outside = (jnp.abs(0.5 * delta) > POLYNOMIAL_LIMIT) | (
-            jnp.abs(consts["half0"] * v) > POLYNOMIAL_LIMIT
-        )
+        outside = ~_in_polynomial_range(consts, delta, v)
         estimate = jnp.where(outside, jnp.inf, estimate)
     estimate = jnp.where(jnp.isfinite(d_delta) & jnp.isfinite(d_v), estimate, jnp.nan)
     return jnp.stack(jnp.broadcast_arrays(*residual), axis=-1), estimate
