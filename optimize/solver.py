@@ -7,7 +7,8 @@ augmented Lagrangian
 
     L(z; λ, ρ) = f(x) + Σ_i [max(0, λ_i − ρ c_i)² − λ_i²] / (2ρ),
 
-minimised over z by ``optax.lbfgs`` (backtracking line search) for at most
+minimised over z by ``optax.lbfgs`` (backtracking line search; where the decrease it asks
+for is below L's roundoff, the slope at the trial point decides) for at most
 ``inner_steps`` iterations (fewer once |∂L/∂z| ≤ tolerance/10; where L-BFGS offers no
 descent direction, a steepest-descent step of unit length in z), after which λ_i ← max(0, λ_i − ρ c_i) and ρ grows
 while the constraints stay violated. Each outer iteration evaluates the
@@ -54,6 +55,9 @@ RHO_GROWTH = 4.0
 RHO_MAX = 1e6
 BOUND_TOLERANCE = 1e-6  # a variable this close (relative to its bound width) counts as on the bound
 ARMIJO = 1e-4  # sufficient-decrease constant of the backtracking search
+# Relative size of L's roundoff as the line search judges it: where the decrease Armijo asks
+# for is below this, the slope at the trial point decides (Hager & Zhang's approximate Wolfe).
+VALUE_NOISE = 1e-12
 BACKTRACK = 0.5  # step reduction per backtrack
 MAX_BACKTRACKS = 30
 INNER_FRACTION = 0.1  # an inner L-BFGS run stops at |∂L/∂z| ≤ INNER_FRACTION · tolerance
@@ -184,7 +188,12 @@ def solve_problem(structure, values, z0, x_eval=None, evaluate_only=False):
         f, c, grad_f, jac = trial[:4]
         value, grad = augmented(y, s["lam"], s["rho"], f, c, grad_f, jac)
         armijo = value <= s["value"] + ARMIJO * s["alpha"] * s["slope"]
-        accepted = jnp.logical_or(s["start"], armijo)
+        # Near a solution the decrease Armijo asks for falls below L's roundoff and the search
+        # would stall on noise; there the exact slope decides: φ'(α) ≤ (2·ARMIJO − 1)·φ'(0),
+        # which on a quadratic is the Armijo condition itself (Hager & Zhang 2005).
+        flat = value <= s["value"] + VALUE_NOISE * jnp.abs(s["value"])
+        approximate = flat & (jnp.dot(grad, s["direction"]) <= (2 * ARMIJO - 1) * s["slope"])
+        accepted = s["start"] | armijo | approximate
         j = jnp.where(accepted, 0, s["j"] + 1)
         stalled = jnp.logical_and(jnp.logical_not(accepted), j >= MAX_BACKTRACKS)
         z = jnp.where(accepted, y, s["z"])
