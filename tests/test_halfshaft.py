@@ -174,11 +174,11 @@ def test_newton_iterations_stay_few_over_the_domain():
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 def test_polynomial_stage_changes_no_digit_and_falls_back_outside_its_range(dtype):
     """The answer equals Newton with the exact sines alone (to roundoff) inside the domain, and
-    point whose small angles leave the polynomials' range (R/l = 0.4, γ0 = 45°: outside the
-    layout domain, where (γ − γ0)/2 reaches 0.13) restarts from the closed form and still
-    solves the exact pair."""
+    a point whose small angles leave the polynomials' range (R/l = 0.55, γ0 = 45°: far outside
+    the layout domain, where Newton reaches a solution with |Δ/2| up to 8) restarts from the
+    closed form and still solves the exact pair, with the exact Newton's own steps."""
     rng = np.random.default_rng(3)
-    R = np.concatenate([100.0 * rng.uniform(0, 0.2, 30), [40.0]]).astype(dtype)[:, None]
+    R = np.concatenate([100.0 * rng.uniform(0, 0.2, 30), [55.0]]).astype(dtype)[:, None]
     g0 = np.concatenate([rng.uniform(0, np.pi / 4, 30), [np.pi / 4]]).astype(dtype)[:, None]
     l = np.asarray(100.0, dtype)
     theta = np.linspace(0, 2 * np.pi / 3, 24, dtype=dtype)[None, :]
@@ -187,7 +187,8 @@ def test_polynomial_stage_changes_no_digit_and_falls_back_outside_its_range(dtyp
     consts = halfshaft.layout_constants(jnp, R, l, g0, theta)
     guess = jnp.stack(jnp.broadcast_arrays(*halfshaft.analytic_unknowns(jnp, consts, theta)))
     scale = halfshaft.first_order_amplitude(consts)
-    exact, exact_steps, done, _ = halfshaft._iterate(consts, scale, rtol, guess, 24, 24)
+    none_done = jnp.zeros(guess.shape[1:], bool)
+    exact, exact_steps, done, _ = halfshaft._iterate(consts, scale, rtol, guess, 24, 24, none_done)
     assert bool(jnp.all(done)) and (np.asarray(result) == RESULTS.successful).all()
     far = jnp.maximum(jnp.abs(0.5 * x[0, -1]), jnp.abs(consts["half0"][-1] * x[1, -1]))
     assert float(jnp.max(far)) > halfshaft.POLYNOMIAL_LIMIT
@@ -313,6 +314,6 @@ def test_error_estimate_from_polynomial_sines_equals_the_exact_one(dtype):
     # (measured: 2.7 eps in float64, 3.9 eps in float32, estimates up to 8e-3 at the corner).
     assert float(jnp.max(exact)) > 1e-3
     np.testing.assert_allclose(polynomial, exact, rtol=0, atol=8 * np.finfo(dtype).eps)
-    far = jnp.full_like(delta, 0.25)  # |Δ/2| = 0.125 > POLYNOMIAL_LIMIT
+    far = jnp.full_like(delta, 0.6)  # |Δ/2| = 0.3 > POLYNOMIAL_LIMIT
     _, outside = halfshaft._diagnostics(R, l, g0, theta, far, v, small_angles=True)
     assert bool(jnp.all(jnp.isinf(outside)))

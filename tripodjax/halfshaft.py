@@ -82,6 +82,7 @@ def layout_constants(
         k=k,
         H=c0 + k * s0,  # −h / (2 l sin(γ0/2)), 2.9.3
         sinc0=_sinc(xp, half0, s0),
+        inv_sinc0=1.0 / _sinc(xp, half0, s0),
         sin_g0=2.0 * s0 * c0,
         cos_g0=1.0 - 2.0 * s0**2,
         sin_15t=xp.sin(1.5 * theta),
@@ -95,6 +96,7 @@ def scaled_system(
     delta: XpArray,
     v: XpArray,
     small_angles: bool = False,
+    row_scaled: bool = False,
 ) -> tuple[tuple[XpArray, XpArray], tuple[tuple[XpArray, XpArray], tuple[XpArray, XpArray]]]:
     """Scaled residual (g1, g2) and closed-form Jacobian of the pair at (Δ, v).
 
@@ -105,16 +107,18 @@ def scaled_system(
 
     With ``small_angles`` the sines and cosines of the small angles Δ/2 and
     (γ − γ0)/2 are Taylor polynomials ([`small_angle_sincos`][tripodjax.halfshaft.small_angle_sincos]), and an
-    iteration is pure arithmetic (for |Δ|, |γ − γ0| ≲ 0.1 only).
+    iteration is pure arithmetic (for |Δ|/2, |γ − γ0|/2 ≤ ``POLYNOMIAL_LIMIT`` only).
+    With ``row_scaled`` the first row (g1, j11, j12) is returned multiplied by
+    cos²γ: the same Newton step, with no division left but the determinant's
+    (XLA then fuses a whole step into one loop).
     """
     half0, s0, c0, k, H = (consts[n] for n in ("half0", "s0", "c0", "k", "H"))
     y = half0 * v
-    inv_sinc0 = 1.0 / consts["sinc0"]
+    inv_sinc0 = consts["inv_sinc0"]
     if small_angles:
         sd, cd = small_angle_sincos(0.5 * delta)
+        sinc_y = _small_angle_sinc(y * y)
         sy, cy = small_angle_sincos(y)
-        y2 = y * y
-        sinc_y = 1.0 - y2 / 6.0 * (1.0 - y2 / 20.0 * (1.0 - y2 / 42.0))
     else:
         sd, cd = xp.sin(0.5 * delta), xp.cos(0.5 * delta)
         sy, cy = xp.sin(y), xp.cos(y)
@@ -133,18 +137,25 @@ def scaled_system(
     cp = consts["cos_15t"] * c3d + consts["sin_15t"] * s3d
     sin3, cos3 = 2.0 * sp * cp, 1.0 - 2.0 * sp**2
     sin_delta, cos_delta = 2.0 * sd * cd, 1.0 - 2.0 * sd**2
-    kq_cg = k * q / cos_g
-    g1 = -H * sin_delta - kq_cg * sin3
-    g2 = 2.0 * H * sd**2 + sigma * (cos_mid + k * sin_mid) - 2.0 * k * q * sp**2
+    kq = k * q
     dq_dv = 2.0 * half0 * rho * cos_half_gamma
-    j11 = -H * cos_delta + 3.0 * kq_cg * cos3
-    j12 = -k * sin3 / cos_g * (dq_dv + q * 2.0 * half0 * sin_g / cos_g)
-    j21 = H * sin_delta + 3.0 * k * q * sin3
+    g2 = 2.0 * H * sd**2 + sigma * (cos_mid + k * sin_mid) - 2.0 * kq * sp**2
+    j21 = H * sin_delta + 3.0 * kq * sin3
     j22 = (
         cy * inv_sinc0 * (cos_mid + k * sin_mid)
         + sigma * half0 * (k * cos_mid - sin_mid)
         - 2.0 * k * sp**2 * dq_dv
     )
+    if row_scaled:  # row 1 × cos²γ
+        cos2_g = cos_g * cos_g
+        g1 = -H * sin_delta * cos2_g - kq * sin3 * cos_g
+        j11 = -H * cos_delta * cos2_g + 3.0 * kq * cos3 * cos_g
+        j12 = -k * sin3 * (dq_dv * cos_g + q * 2.0 * half0 * sin_g)
+    else:
+        kq_cg = kq / cos_g
+        g1 = -H * sin_delta - kq_cg * sin3
+        j11 = -H * cos_delta + 3.0 * kq_cg * cos3
+        j12 = -k * sin3 / cos_g * (dq_dv + q * 2.0 * half0 * sin_g / cos_g)
     return (g1, g2), ((j11, j12), (j21, j22))
 
 
@@ -196,16 +207,27 @@ def default_rtol(dtype: DTypeLike) -> float:
     return _RTOL_EPS_MULTIPLE * float(jnp.finfo(dtype).eps)
 
 
-def small_angle_sincos(x: XpArray) -> tuple[XpArray, XpArray]:
-    """(sin x, cos x) by Taylor polynomials to x⁹ and x⁸: exact to roundoff for |x| ≤ 0.05.
+def _small_angle_sinc(x2: XpArray) -> XpArray:
+    """sin(x)/x from x² by its Taylor polynomial to x¹⁰ (exact to roundoff for |x| ≤ ``POLYNOMIAL_LIMIT``)."""
+    return 1.0 - x2 / 6.0 * (
+        1.0 - x2 / 20.0 * (1.0 - x2 / 42.0 * (1.0 - x2 / 72.0 * (1.0 - x2 / 110.0)))
+    )
 
-    Used by the corrections of [`Analytic`][tripodjax.solvers.Analytic], where
-    the arguments are Δ/2 and (γ − γ0)/2 (|Δ| ≤ 0.06 over the domain).
+
+def small_angle_sincos(x: XpArray) -> tuple[XpArray, XpArray]:
+    """(sin x, cos x) by Taylor polynomials to x¹¹ and x¹²: exact to roundoff for |x| ≤ 0.25.
+
+    The first omitted terms, x¹³/13! and x¹⁴/14!, are below 1e-17 of sin x and cos x
+    there (``POLYNOMIAL_LIMIT``), and so are those of the polynomials' derivatives. Used by
+    the Newton steps and the corrections of [`Analytic`][tripodjax.solvers.Analytic], where
+    the arguments are Δ/2 and (γ − γ0)/2 (|Δ| ≤ 0.06 over the layout domain).
     """
     x2 = x * x
-    sin = x * (1.0 - x2 / 6.0 * (1.0 - x2 / 20.0 * (1.0 - x2 / 42.0 * (1.0 - x2 / 72.0))))
-    cos = 1.0 - x2 / 2.0 * (1.0 - x2 / 12.0 * (1.0 - x2 / 30.0 * (1.0 - x2 / 56.0)))
-    return sin, cos
+    cos = 1.0 - x2 / 2.0 * (
+        1.0
+        - x2 / 12.0 * (1.0 - x2 / 30.0 * (1.0 - x2 / 56.0 * (1.0 - x2 / 90.0 * (1.0 - x2 / 132.0))))
+    )
+    return x * _small_angle_sinc(x2), cos
 
 
 def analytic_unknowns(
@@ -234,10 +256,12 @@ def _nonfinite_inputs(R, l, gamma0, theta):
     )
 
 
-# The polynomial sines of small_angle_sincos are exact to float64 roundoff for |x| ≤ 0.1 (the
-# first omitted term, x¹¹/11!, is 2.5e-19 of x there); over the domain |Δ/2| ≤ 0.03.
-POLYNOMIAL_LIMIT = 0.1
-POLYNOMIAL_STEPS = 4  # from the closed form; with 4 one exact step then confirms every point of the domain (measured)
+# The polynomial sines of small_angle_sincos are exact to float64 roundoff for |x| ≤ 0.25 (the
+# first omitted terms are below 1e-17 of the functions there); over the domain |Δ/2| ≤ 0.03.
+POLYNOMIAL_LIMIT = 0.25
+# Polynomial steps from the closed form before the tested one; with 4 the fifth step confirms
+# every point of the domain (measured).
+POLYNOMIAL_STEPS = 4
 
 
 def _in_polynomial_range(consts, delta, v):
@@ -247,11 +271,41 @@ def _in_polynomial_range(consts, delta, v):
     )
 
 
-def _iterate(consts, scale, rtol, x, limit, max_steps):
-    """Newton steps (exact sines) on the stacked (Δ, v) until each point's step is small or it
-    has made ``limit`` steps (per point); returns (x, steps, done, singular)."""
+def _step_is_small(old, new, rtol, scale):
+    """The stopping test of every Newton stage: max(|dΔ|, |dv|) ≤ rtol · (max(|Δ|, |v|) + scale)."""
+    (d0, v0), (d1, v1) = old, new
+    step = jnp.maximum(jnp.abs(d1 - d0), jnp.abs(v1 - v0))
+    tiny = jnp.finfo(step.dtype).tiny
+    return step <= rtol * (jnp.maximum(jnp.abs(d1), jnp.abs(v1)) + scale) + tiny
+
+
+def _polynomial_steps(consts, delta, v, count):
+    """``count`` Newton steps with the polynomial sines from (Δ, v); returns the last two iterates.
+
+    Δ and v travel as one complex number Δ + iv through a ``fori_loop``: a step then has a
+    single output, so XLA evaluates it in one fused pass, shared subexpressions once (with
+    two outputs, or unrolled, it splits each step into several passes that recompute them).
+    The first row of the pair is scaled by cos²γ (``row_scaled``): no division but 1/det.
+    """
+
+    def step(_, pair):
+        z = pair[1]
+        d, w = jnp.real(z), jnp.imag(z)
+        d_delta, d_v = newton_step(*scaled_system(jnp, consts, d, w, True, row_scaled=True))
+        return z, jax.lax.complex(d + d_delta, w + d_v)
+
+    z = jax.lax.complex(delta, v)
+    before, after = jax.lax.fori_loop(0, count, step, (z, z))
+    return (jnp.real(before), jnp.imag(before)), (jnp.real(after), jnp.imag(after))
+
+
+def _iterate(consts, scale, rtol, x, limit, max_steps, done):
+    """Newton steps (exact sines) on the stacked (Δ, v) for the points not yet ``done``, until
+    each point's step is small or it has made ``limit`` steps; returns (x, steps, done, singular).
+
+    The loop runs only while some point is active: none, where the polynomial stage settled
+    every point."""
     shape = x.shape[1:]
-    tiny = jnp.finfo(x.dtype).tiny
 
     def active_of(steps, done):
         return jnp.logical_not(done) & (steps < limit)
@@ -266,8 +320,7 @@ def _iterate(consts, scale, rtol, x, limit, max_steps):
         n, x, steps, done, singular = carry
         d_delta, d_v = newton_step(*scaled_system(jnp, consts, x[0], x[1]))
         new = jnp.stack([x[0] + d_delta, x[1] + d_v])
-        step = jnp.max(jnp.abs(new - x), axis=0)
-        small = step <= rtol * (jnp.max(jnp.abs(new), axis=0) + scale) + tiny
+        small = _step_is_small(x, new, rtol, scale)
         # A non-finite step ends the point: a singular Jacobian (finite iterate), or NaN input.
         broken = ~jnp.all(jnp.isfinite(new), axis=0)
         active = active_of(steps, done)
@@ -280,7 +333,7 @@ def _iterate(consts, scale, rtol, x, limit, max_steps):
         )
 
     zeros = jnp.zeros(shape, bool)
-    start = (jnp.int32(0), x, jnp.zeros(shape, jnp.int32), zeros, zeros)
+    start = (jnp.int32(0), x, jnp.zeros(shape, jnp.int32), done, zeros)
     _, x, steps, done, singular = jax.lax.while_loop(cond, body, start)
     return x, steps, done, singular
 
@@ -288,31 +341,29 @@ def _iterate(consts, scale, rtol, x, limit, max_steps):
 def _newton(R, l, gamma0, theta, rtol, max_steps):
     """Newton iterations from the closed form, elementwise; returns (Δ, v) stacked, steps, result.
 
-    Two stages within ``max_steps`` steps in all. First ``POLYNOMIAL_STEPS`` Newton steps on
-    the pair with the polynomial sines of [`small_angle_sincos`][tripodjax.halfshaft.small_angle_sincos]:
-    plain arithmetic, unrolled (no test between them, so XLA fuses them into one pass), where an
-    exact step costs four transcendental functions. Then Newton with the exact sines from that
-    answer until the step is below tolerance: at a converged point this is one step that changes
-    nothing, so the answer and the status are those of the exact pair. A point whose small
-    angles leave the polynomials' range (|Δ/2| or |γ − γ0|/2 above ``POLYNOMIAL_LIMIT``) or whose
-    first stage is not finite starts the second from the closed form instead.
+    Two stages within ``max_steps`` steps in all. First ``POLYNOMIAL_STEPS + 1`` Newton steps
+    (or ``max_steps`` if fewer) on the pair with the polynomial sines of
+    [`small_angle_sincos`][tripodjax.halfshaft.small_angle_sincos], pure arithmetic: where the
+    last step starts inside the polynomials' range (|Δ/2|, |γ − γ0|/2 ≤ ``POLYNOMIAL_LIMIT``,
+    where they equal the exact sines to roundoff) and is below tolerance, the point is solved:
+    over the layout domain every point is. The other points go on with Newton on the exact
+    sines (a loop that does not run when there are none): from there if still in range and
+    finite, else from the closed form again.
     """
     consts = layout_constants(jnp, R, l, gamma0, theta)
     scale = first_order_amplitude(consts)
     bad_input = _nonfinite_inputs(R, l, gamma0, theta)
     shape = bad_input.shape
-    guess = jnp.stack([jnp.broadcast_to(u, shape) for u in analytic_unknowns(jnp, consts, theta)])
-    x, used = guess, jnp.zeros(shape, jnp.int32)
-    polynomial_steps = min(POLYNOMIAL_STEPS, max_steps - 1)  # leave the exact stage one step
-    if polynomial_steps:
-        delta, v = guess[0], guess[1]
-        for _ in range(polynomial_steps):
-            d_delta, d_v = newton_step(*scaled_system(jnp, consts, delta, v, small_angles=True))
-            delta, v = delta + d_delta, v + d_v
-        keep = _in_polynomial_range(consts, delta, v) & jnp.isfinite(delta) & jnp.isfinite(v)
-        x = jnp.where(keep, jnp.stack([delta, v]), guess)
-        used = jnp.where(keep, polynomial_steps, 0)
-    x, steps, done, singular = _iterate(consts, scale, rtol, x, max_steps - used, max_steps)
+    guess = [jnp.broadcast_to(u, shape) for u in analytic_unknowns(jnp, consts, theta)]
+    polynomial_steps = min(POLYNOMIAL_STEPS + 1, max_steps)
+    before, (delta, v) = _polynomial_steps(consts, *guess, polynomial_steps)
+    finite = jnp.isfinite(delta) & jnp.isfinite(v)
+    keep = _in_polynomial_range(consts, *before) & finite
+    done = keep & _step_is_small(before, (delta, v), rtol, scale)
+    keep = keep & _in_polynomial_range(consts, delta, v)
+    x = jnp.where(keep, jnp.stack([delta, v]), jnp.stack(guess))
+    used = jnp.where(keep, polynomial_steps, 0)
+    x, steps, done, singular = _iterate(consts, scale, rtol, x, max_steps - used, max_steps, done)
     steps = used + steps
     result = code_where(done, RESULTS.successful, RESULTS.max_steps_reached)
     result = code_where(singular & ~bad_input, RESULTS.singular_jacobian, result)
@@ -344,7 +395,8 @@ def _implicit_solver(rtol, max_steps):
             args = list(primals)
             for i, value in zip(active, moving, strict=False):
                 args[i] = value
-            return scaled_system(jnp, layout_constants(jnp, *args), x[0], x[1])
+            consts = layout_constants(jnp, *args)
+            return scaled_system(jnp, consts, x[0], x[1], True, row_scaled=True)
 
         (_, jacobian), (dg, _) = jax.jvp(
             system_at_solution,
@@ -352,6 +404,10 @@ def _implicit_solver(rtol, max_steps):
             tuple(tangents[i] for i in active),
         )
         dx = jnp.stack(newton_step(dg, jacobian))
+        # The polynomial sines hold inside their range, which holds every solution of the layout
+        # domain (|Δ/2| ≤ 0.03 there): beyond it the derivatives are NaN, never a wrong number.
+        consts = layout_constants(jnp, *primals)
+        dx = jnp.where(_in_polynomial_range(consts, x[0], x[1]), dx, jnp.nan)
         no_tangent = [np.zeros(a.shape, jax.dtypes.float0) for a in out[1:]]
         return out, (jnp.broadcast_to(dx, x.shape), *no_tangent)
 
@@ -362,11 +418,8 @@ def _implicit_solver(rtol, max_steps):
 def _analytic(R, l, gamma0, theta, corrections):
     """The closed form plus ``corrections`` Newton steps with polynomial sines; (Δ, v)."""
     consts = layout_constants(jnp, R, l, gamma0, theta)
-    delta, v = analytic_unknowns(jnp, consts, theta)
-    for _ in range(corrections):
-        d_delta, d_v = newton_step(*scaled_system(jnp, consts, delta, v, small_angles=True))
-        delta, v = delta + d_delta, v + d_v
-    return delta, v
+    delta, v = jnp.broadcast_arrays(*analytic_unknowns(jnp, consts, theta))
+    return _polynomial_steps(consts, delta, v, corrections)[1]
 
 
 def _diagnostics(R, l, gamma0, theta, delta, v, small_angles=False):
@@ -382,8 +435,8 @@ def _diagnostics(R, l, gamma0, theta, delta, v, small_angles=False):
     delta, v = jax.lax.stop_gradient(delta), jax.lax.stop_gradient(v)
     R, l, gamma0, theta = (jax.lax.stop_gradient(a) for a in (R, l, gamma0, theta))
     consts = layout_constants(jnp, R, l, gamma0, theta)
-    residual, jacobian = scaled_system(jnp, consts, delta, v, small_angles)
-    d_delta, d_v = newton_step(residual, jacobian)
+    residual, _ = scaled_system(jnp, consts, delta, v, small_angles)  # formed only if used
+    d_delta, d_v = newton_step(*scaled_system(jnp, consts, delta, v, small_angles, True))
     scale = jnp.maximum(first_order_amplitude(consts), jnp.finfo(delta.dtype).tiny)
     estimate = jnp.maximum(jnp.abs(d_delta), jnp.abs(d_v)) / scale
     if small_angles:
@@ -413,6 +466,9 @@ class HalfshaftSolution:
         result: [`RESULTS`][tripodjax.results.RESULTS] code per point (int32).
         converged: ``result == RESULTS.successful``.
         iterations: Newton steps taken (the fixed corrections for Analytic).
+        series: for a level that solves at nodes and interpolates (Analytic over a
+            revolution), Δ and v as their [`PeriodSeries`][tripodjax.halfshaft.PeriodSeries]
+            in 3θ; None otherwise.
     """
 
     theta: jax.Array
@@ -425,6 +481,46 @@ class HalfshaftSolution:
     result: jax.Array
     converged: jax.Array
     iterations: jax.Array
+    series: "PeriodSeries | None" = None
+
+
+@pytree_dataclass
+class PeriodSeries:
+    """Δ and v over a revolution as trigonometric series in 3θ, from an interpolating level's nodes.
+
+    The pair 2.9.1–2.9.2 is unchanged under θ → −θ, ψ → −ψ with γ kept, so Δ is odd
+    and v even in θ, and the trigonometric interpolant of M equispaced node values
+    of one period is
+
+        Δ(θ) = Σ_{m=1}^{M/2−1} b_m sin 3mθ,    v(θ) = Σ_{m=0}^{M/2} a_m cos 3mθ
+
+    (the node data's other parts are roundoff). Extremes over a grid of the period
+    then need half the grid and a few terms per angle
+    ([`tripodjax.kinematics`][tripodjax.kinematics] uses it for the peak-to-peak metrics).
+
+    Attributes:
+        delta_sin: b_m [rad], m = 1 … M/2 − 1, shape (…, M/2 − 1).
+        v_cos: a_m [–], m = 0 … M/2, shape (…, M/2 + 1).
+    """
+
+    delta_sin: jax.Array
+    v_cos: jax.Array
+
+
+def _series_of_nodes(delta, v):
+    """The [`PeriodSeries`][tripodjax.halfshaft.PeriodSeries] of node values (…, M) at 3θ_k = 2πk/M."""
+    nodes = delta.shape[-1]
+    k = np.arange(nodes)
+    m = np.arange(nodes // 2 + 1)
+    phase = 2.0 * np.pi * np.outer(k, m) / nodes
+    weight = np.where((m == 0) | (m == nodes // 2), 1.0, 2.0) / nodes
+    sine = jnp.asarray((np.sin(phase) * weight)[:, 1:-1], delta.dtype)
+    cosine = jnp.asarray(np.cos(phase) * weight, delta.dtype)
+    highest = jax.lax.Precision.HIGHEST
+    return PeriodSeries(
+        delta_sin=jnp.matmul(delta, sine, precision=highest),
+        v_cos=jnp.matmul(v, cosine, precision=highest),
+    )
 
 
 def solve_halfshaft(
@@ -517,7 +613,8 @@ def _solve_period(layout, theta, solver):
     # The interpolated answer is finite wherever the node values are.
     finite = jnp.all(jnp.isfinite(at_nodes[0]) & jnp.isfinite(at_nodes[1]))
     diagnostics = (residual, jnp.max(estimate))
-    return _finish_analytic(R, l, gamma0, theta, delta, v, solver, diagnostics, finite)
+    series = _series_of_nodes(*at_nodes)
+    return _finish_analytic(R, l, gamma0, theta, delta, v, solver, diagnostics, finite, series)
 
 
 def trigonometric_interpolation(theta: ArrayLike, nodes: int) -> jax.Array:
@@ -547,12 +644,14 @@ def trigonometric_interpolation(theta: ArrayLike, nodes: int) -> jax.Array:
     return total / nodes
 
 
-def _finish_analytic(R, l, gamma0, theta, delta, v, solver, diagnostics=None, finite=None):
+def _finish_analytic(
+    R, l, gamma0, theta, delta, v, solver, diagnostics=None, finite=None, series=None
+):
     """The HalfshaftSolution of an Analytic answer (Δ, v): codes from its error estimate.
 
     ``diagnostics``: (residual, estimate) when already formed (the estimate may be
     one number for the whole grid), ``finite``: whether (Δ, v) is finite when
-    already known; by default both at every point.
+    already known; by default both at every point. ``series``: the node series, if any.
     """
     delta, v = jnp.broadcast_arrays(delta, v)
     steps = jnp.full(delta.shape, solver.corrections, jnp.int32)
@@ -563,10 +662,10 @@ def _finish_analytic(R, l, gamma0, theta, delta, v, solver, diagnostics=None, fi
     bad = _nonfinite_inputs(R, l, gamma0, theta) | ~finite
     result = code_where(diagnostics[1] > solver.validity, RESULTS.outside_validity, 0)
     result = code_where(bad, RESULTS.nonfinite, result)
-    return _finish(R, l, gamma0, theta, delta, v, result, steps, diagnostics)
+    return _finish(R, l, gamma0, theta, delta, v, result, steps, diagnostics, series)
 
 
-def _finish(R, l, gamma0, theta, delta, v, result, steps, diagnostics=None):
+def _finish(R, l, gamma0, theta, delta, v, result, steps, diagnostics=None, series=None):
     """The HalfshaftSolution of (Δ, v): diagnostics, and NaN wherever an input is not finite."""
     bad_input = _nonfinite_inputs(R, l, gamma0, theta)
     if diagnostics is None:
@@ -576,7 +675,9 @@ def _finish(R, l, gamma0, theta, delta, v, result, steps, diagnostics=None):
     # trivially solvable): a factor NaN/1, so the θ- and layout-derivatives are NaN there too.
     nan_where_bad = jnp.where(bad_input, jnp.nan, 1.0).astype(delta.dtype)
     delta, v = delta * nan_where_bad, v * nan_where_bad
-    return _solution(theta, gamma0, delta, v, residual, estimate, result, steps)
+    if series is not None:  # one layout (scalar inputs): its coefficients alike
+        series = jax.tree_util.tree_map(lambda c: c * jnp.max(nan_where_bad), series)
+    return _solution(theta, gamma0, delta, v, residual, estimate, result, steps, series)
 
 
 def analytic_halfshaft(layout: Layout, theta: ArrayLike, corrections: int = 2) -> HalfshaftSolution:
@@ -610,7 +711,7 @@ def raise_first_failure(
     )
 
 
-def _solution(theta, gamma0, delta, v, residual, estimate, result, iterations):
+def _solution(theta, gamma0, delta, v, residual, estimate, result, iterations, series=None):
     """A HalfshaftSolution from the unknowns (Δ, v), every field of the broadcast shape."""
     theta, gamma0 = jnp.broadcast_to(theta, delta.shape), jnp.broadcast_to(gamma0, delta.shape)
     delta_gamma = gamma0 * v
@@ -625,4 +726,5 @@ def _solution(theta, gamma0, delta, v, residual, estimate, result, iterations):
         result=jnp.broadcast_to(result, delta.shape),
         converged=jnp.broadcast_to(result == RESULTS.successful, delta.shape),
         iterations=jnp.broadcast_to(iterations, delta.shape),
+        series=series,
     )

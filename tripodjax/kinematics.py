@@ -148,8 +148,26 @@ def _shape_of(x, scale, limit):
     return jnp.where(ok, x * (1.0 / jnp.where(ok, scale, 1.0)), limit + 0.0 * x)
 
 
+def _half_period_table(n_period, orders, trig, dtype):
+    """trig(3mθ_j) for m in ``orders`` and θ_j of the first half of ``period_grid`` (j ≤ n/2)."""
+    j = np.arange(n_period // 2 + 1)
+    return jnp.asarray(trig(2.0 * np.pi * np.outer(orders, j) / n_period), dtype)
+
+
+def _on_half_period(coefficients, table):
+    """Σ_m c_m · table[m, j]: a series on the half period (terms written out, so XLA fuses
+    them with the extreme that follows instead of storing the values)."""
+    return sum(coefficients[..., m, None] * table[m] for m in range(table.shape[0]))
+
+
 class _Revolution:
-    """Quantities shared by several metrics, each built once and only when asked for."""
+    """Quantities shared by several metrics, each built once and only when asked for.
+
+    Where the solution carries its [`PeriodSeries`][tripodjax.halfshaft.PeriodSeries]
+    (Analytic over a revolution), the extremes of Δ, dΔ/dθ and γ − γ0 over the grid are
+    taken on the first half of the period: Δ is odd and γ even in θ, so the other half
+    repeats the values (Δ with its sign changed).
+    """
 
     def __init__(self, layout, sol, rates):
         self.sol, self.rates = sol, rates
@@ -164,6 +182,27 @@ class _Revolution:
         return first_order_amplitude(layout_constants(jnp, self.R, self.l, self.gamma0, 0.0))
 
     @functools.cached_property
+    def _sine_table(self):
+        """sin 3mθ_j, m = 1 … M/2 − 1, on the half period (the odd part of the series)."""
+        orders = np.arange(1, self.sol.series.delta_sin.shape[-1] + 1)
+        return _half_period_table(self.sol.theta.shape[-1], orders, np.sin, self.R.dtype)
+
+    @functools.cached_property
+    def _cosine_table(self):
+        """cos 3mθ_j, m = 0 … M/2, on the half period (the even part of the series)."""
+        orders = np.arange(self.sol.series.v_cos.shape[-1])
+        return _half_period_table(self.sol.theta.shape[-1], orders, np.cos, self.R.dtype)
+
+    @functools.cached_property
+    def delta_gamma_on_half_period(self):
+        """γ − γ0 = γ0 v on the half period, from the series."""
+        return self.gamma0 * _on_half_period(self.sol.series.v_cos, self._cosine_table)
+
+    def _first_harmonic(self, coefficients, first):
+        """The γ0 → 0 limit of a shape series: ``first`` in the first harmonic, 0 beyond."""
+        return jnp.zeros(coefficients.shape[-1], coefficients.dtype).at[0].set(first)
+
+    @functools.cached_property
     def spider(self):
         s = self.sol
         return joint.spider_centre(self.R, s.gamma, s.theta, s.psi)
@@ -176,12 +215,31 @@ class _Revolution:
         return e * (1.0 + 2.0 * jnp.cos(2.0 * joint.roller_angles(s.psi)))
 
     def delta_pp(self):
+        if self.sol.series is not None:  # Δ odd: ptp = 2 max |Δ| over the half period
+            b = self.sol.series.delta_sin
+            shape = _shape_of(b, self.amplitude, self._first_harmonic(b, -1.0))
+            return self.amplitude * 2.0 * jnp.max(jnp.abs(_on_half_period(shape, self._sine_table)))
         limit = -jnp.sin(3.0 * self.sol.theta)
         return self.amplitude * _ptp(_shape_of(self.sol.delta, self.amplitude, limit))
 
     def irregularity(self):
+        if self.sol.series is not None:  # dΔ/dθ = Σ 3m b_m cos 3mθ, even
+            b = self.sol.series.delta_sin
+            rate = 3.0 * jnp.arange(1, b.shape[-1] + 1, dtype=b.dtype) * b
+            shape = _shape_of(rate, self.amplitude, self._first_harmonic(b, -3.0))
+            return self.amplitude * _ptp(_on_half_period(shape, self._cosine_table[1:]))
         limit = -3.0 * jnp.cos(3.0 * self.sol.theta)
         return self.amplitude * _ptp(_shape_of(self.rates.delta, self.amplitude, limit))
+
+    def delta_gamma_max(self):
+        if self.sol.series is not None:
+            return jnp.max(self.delta_gamma_on_half_period)
+        return jnp.max(self.sol.delta_gamma)
+
+    def gamma_pp(self):
+        if self.sol.series is not None:
+            return _ptp(self.delta_gamma_on_half_period)
+        return _ptp(self.sol.delta_gamma)
 
     def roller_axial_stroke(self):
         """R tan γ0 · ptp(Z_i / (R tan γ0)), the shape regular at γ0 = 0 (→ −cos ψ_i)."""
@@ -215,10 +273,10 @@ class _Revolution:
 _METRICS = {
     "delta_pp": _Revolution.delta_pp,
     "irregularity": _Revolution.irregularity,
-    "gamma_pp": lambda r: _ptp(r.sol.delta_gamma),
-    "gamma_max": lambda r: r.gamma0 + jnp.max(r.sol.delta_gamma),
+    "gamma_pp": _Revolution.gamma_pp,
+    "gamma_max": lambda r: r.gamma0 + r.delta_gamma_max(),
     # e(γ) grows with γ on 0 ≤ γ < π/2: its largest value is e at the largest γ.
-    "ecc_max": lambda r: joint.eccentricity(r.R, r.gamma0 + jnp.max(r.sol.delta_gamma)),
+    "ecc_max": lambda r: joint.eccentricity(r.R, r.gamma0 + r.delta_gamma_max()),
     "roller_stroke": lambda r: _ptp(r.roller_radial_excess),
     "roller_radial_max": lambda r: r.R + jnp.max(r.roller_radial_excess),
     "roller_axial_stroke": _Revolution.roller_axial_stroke,
