@@ -198,8 +198,9 @@ def map_chunks(
             ``jax.jit`` of a ``jax.vmap``); jit-compiled once per shape.
         inputs: a pytree of NumPy-convertible arrays with one leading length
             N, the same in every process.
-        chunk_size: rows per call, a positive integer; rounded up to a
-            multiple of the device count and capped at N (see
+        chunk_size: the most rows per call, a positive integer: the N rows
+            go in the fewest calls of at most that many, spread evenly over them
+            and rounded up to a multiple of the device count (see
             [`default_chunk_size`][tripodjax.sweep.default_chunk_size]).
         devices: devices of the mesh (default: all, across processes).
         progress: as for [`sweep`][tripodjax.sweep.sweep] (a bar on process 0 only).
@@ -221,7 +222,10 @@ def map_chunks(
     devices = check_devices(devices)
     mesh = jax.sharding.Mesh(np.array(devices), ("rows",))
     sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("rows"))
-    chunk = len(devices) * max(1, math.ceil(min(chunk_size, max(n, 1)) / len(devices)))
+    # The fewest calls of at most chunk_size rows, the rows spread evenly over them (so the
+    # padding of the last call is under one row per device, not most of a chunk).
+    calls = math.ceil(max(n, 1) / min(chunk_size, max(n, 1)))
+    chunk = len(devices) * max(1, math.ceil(math.ceil(max(n, 1) / calls) / len(devices)))
     if n == 0:
         shapes = [jax.ShapeDtypeStruct((chunk, *leaf.shape[1:]), leaf.dtype) for leaf in leaves]
         out = jax.eval_shape(fn, jax.tree_util.tree_unflatten(treedef, shapes))
@@ -296,8 +300,9 @@ def sweep(
             midway between them; ``"max_residual"`` evaluates the pair at
             every angle (as much as the analytic solve itself). A bare string
             is a TypeError.
-        chunk_size: layouts per compiled call, a positive integer, rounded up
-            to a multiple of the device count; bounds the memory. Default: 2^18
+        chunk_size: the most layouts per compiled call, a positive integer
+            (the layouts are spread evenly over the calls, rounded up to a
+            multiple of the device count); bounds the memory. Default: 2^18
             solved angles per chunk on a CPU (cache-sized: 2184 layouts at
             n_theta = 360), 2^22 on an accelerator.
         gaf: the GAF inputs, a [`GAFInputs`][tripodjax.friction.GAFInputs]
