@@ -50,10 +50,13 @@ def test_bench_writes_its_figures(tmp_path):
     assert analytic["errors_vs_newton_float64"]["irregularity"] < 0.01
     assert analytic["domain_errors_vs_newton_float64"]["gamma_pp"] < 0.05
     assert analytic["domain_max_error_estimate"] < 0.01
-    limit = figures["transcendental_limit"]
-    assert limit["sines_per_s"] > 0 and limit["newton_loop_iterations"] >= 1
-    exact = limit["newton_loop_iterations"] - limit["polynomial_iterations"]
-    assert exact >= 1 and limit["transcendentals_per_solved_angle"] == 4 * exact + 4
+    limit = figures["machine_limit"]
+    assert limit["sines_per_s"] > 0 and limit["polynomial_steps_per_s"] > 0
+    # Over the design range every angle is settled by the polynomial steps: no exact-sine
+    # iteration, so no transcendental function per solved angle.
+    assert limit["newton_loop_iterations"] == limit["polynomial_iterations"]
+    assert limit["exact_iterations"] == 0 and limit["transcendentals_per_solved_angle"] == 0
+    assert limit["steps_per_solved_angle"] == limit["polynomial_iterations"] + 1
     costs = figures["output_costs"]
     for level in ("newton", "analytic", "closed_form"):
         assert costs[level]["default"] > 0
@@ -63,4 +66,5 @@ def test_bench_writes_its_figures(tmp_path):
         "× newton" in result.stdout
         and "× NumPy" in result.stdout
         and "gradient (R, l, γ0) / forward cost" in result.stdout
+        and "newton/float64 reaches" in result.stdout
     )

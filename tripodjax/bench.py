@@ -10,9 +10,12 @@ same grid (one period of ``n_theta`` angles per layout):
 - a per-point ``scipy.optimize.fsolve`` loop on the printed pair, the seed's
   own workflow, on a subsample (SciPy: the ``bench`` extra, ``pip install "tripodjax[bench]"``).
 
-It prints points/s (layouts × angles solved per second), the ratios to newton
-in the same dtype and to the peers, the cost of a gradient relative to the
-forward pass, and the error of delta_pp, irregularity, gamma_pp and ecc_max
+It prints points/s (layouts × angles solved per second, ``sweep`` with its
+default outputs), the ratios to newton in the same dtype and to the peers,
+the machine's limit for the Newton sweep (XLA's rate for one polynomial Newton
+step and for sines, measured in the same run), the cost of each output, the
+cost of a gradient relative to the forward pass, and the error of delta_pp,
+irregularity, gamma_pp and ecc_max
 against converged float64 — over the seed's design range (the timed set) and
 over the whole domain (R/l log-uniform 1e-3…0.2, γ0 uniform 0…45°, plus the
 corner R/l = 0.2, γ0 = 45°); and writes the figures as JSON. Absolute times
@@ -161,12 +164,10 @@ def fsolve_metrics(
 
 # --------------------------------------------------------------------------- the machine's limit
 
-# Transcendental functions per exact Newton iteration of one angle: the sine and cosine of Δ/2 and
-# of (γ − γ0)/2 (scaled_system; the first POLYNOMIAL_STEPS iterations use polynomial sines and
-# need none); the θ-rate by the implicit function theorem needs the Jacobian at the solution once
-# more (another four).
-TRANSCENDENTALS_PER_ITERATION = 4
-TRANSCENDENTALS_FOR_RATES = 4
+# Transcendental functions per exact-sine Newton iteration of one angle: the sine and cosine of
+# Δ/2 and of (γ − γ0)/2 (scaled_system). The polynomial steps, the θ-rate by the implicit
+# function theorem and the metrics need none over the layout domain.
+TRANSCENDENTALS_PER_EXACT_ITERATION = 4
 
 
 def sine_rate(dtype: Any = np.float64, n: int = 2**18, repeats: int = 5) -> float:
@@ -178,6 +179,35 @@ def sine_rate(dtype: Any = np.float64, n: int = 2**18, repeats: int = 5) -> floa
     sine = jax.jit(jnp.sin)
     seconds = _best_time(lambda: jax.block_until_ready(sine(x)), repeats)
     return n / seconds
+
+
+def newton_step_rate(n_theta: int = 360, n_points: int = 2**18, repeats: int = 5) -> float:
+    """Polynomial Newton steps per second (float64) over a sweep chunk, as XLA compiles them here.
+
+    The marginal cost of a step: ``halfshaft._polynomial_steps`` with 10 steps less with 2,
+    over the angles of a chunk (2^18 points), so the start and the loop's setup cancel.
+    """
+    import jax
+    import jax.numpy as jnp
+
+    from tripodjax.halfshaft import _polynomial_steps, analytic_unknowns, layout_constants
+    from tripodjax.kinematics import period_grid
+
+    theta = period_grid(n_theta, np.float64)
+    n_layouts = max(1, n_points // theta.shape[0])
+    R, l, g0 = (jnp.asarray(a)[:, None] for a in random_layouts(n_layouts))
+
+    def steps(count):
+        def run(R, l, g0):
+            consts = layout_constants(jnp, R, l, g0, theta)
+            guess = jnp.broadcast_arrays(*analytic_unknowns(jnp, consts, theta))
+            return _polynomial_steps(consts, jax.lax.complex(*guess), count)[1]
+
+        run = jax.jit(run)
+        return _best_time(lambda: jax.block_until_ready(run(R, l, g0)), repeats)
+
+    few, many = steps(2), steps(10)
+    return 8 * n_layouts * theta.shape[0] / max(many - few, 1e-9)
 
 
 def newton_loop_iterations(layouts: Any, n_theta: int) -> int:
@@ -253,8 +283,8 @@ def run(
             batch = layouts(dtype)
             holder: dict[str, Any] = {}
 
-            def call(holder=holder, batch=batch, solver=solver):
-                holder["r"] = tj.sweep(batch, n_theta=n_theta, solver=solver, outputs=COMPARED)
+            def call(holder=holder, batch=batch, solver=solver):  # the default outputs
+                holder["r"] = tj.sweep(batch, n_theta=n_theta, solver=solver)
 
             seconds = _best_time(call, repeats)
             domain = tj.sweep(
@@ -280,20 +310,24 @@ def run(
         newton = results["variants"]["newton/" + name.split("/")[1]]
         entry["speedup_vs_newton_same_dtype"] = newton["seconds"] / entry["seconds"]
 
-    rate = sine_rate()
     from tripodjax.halfshaft import POLYNOMIAL_STEPS
 
     iterations = newton_loop_iterations(layouts(np.float64), n_theta)
-    exact = iterations - POLYNOMIAL_STEPS
-    per_angle = TRANSCENDENTALS_PER_ITERATION * exact + TRANSCENDENTALS_FOR_RATES
+    exact = max(0, iterations - (POLYNOMIAL_STEPS + 1))
     newton_rate = results["variants"]["newton/float64"]["points_per_s"]
-    results["transcendental_limit"] = {
-        "sines_per_s": rate,
+    step_rate = newton_step_rate(n_theta)
+    # A solved angle: its polynomial steps, and one more Jacobian solve for dψ/dθ.
+    steps_per_angle = POLYNOMIAL_STEPS + 2
+    results["machine_limit"] = {
+        "sines_per_s": sine_rate(),
         "newton_loop_iterations": iterations,
-        "polynomial_iterations": POLYNOMIAL_STEPS,
-        "transcendentals_per_solved_angle": per_angle,
-        "limit_points_per_s": rate / per_angle,
-        "newton_fraction_of_limit": newton_rate * per_angle / rate,
+        "polynomial_iterations": POLYNOMIAL_STEPS + 1,
+        "exact_iterations": exact,
+        "transcendentals_per_solved_angle": TRANSCENDENTALS_PER_EXACT_ITERATION * exact,
+        "polynomial_steps_per_s": step_rate,
+        "steps_per_solved_angle": steps_per_angle,
+        "limit_points_per_s": step_rate / steps_per_angle,
+        "newton_fraction_of_limit": newton_rate * steps_per_angle / step_rate,
     }
 
     holder = {}
@@ -428,13 +462,14 @@ def report(results: dict[str, Any]) -> str:
             f"gamma_pp {e['gamma_pp']:.1e}  ecc_max {e['ecc_max']:.1e}  "
             f"largest error estimate {r['domain_max_error_estimate']:.1e}"
         )
-    t = results["transcendental_limit"]
+    t = results["machine_limit"]
     lines.append(
-        f"XLA float64 sines: {t['sines_per_s']:.3g}/s; a Newton angle needs "
-        f"{t['transcendentals_per_solved_angle']} ({t['newton_loop_iterations']} iterations, "
-        f"{t['polynomial_iterations']} of them with polynomial sines; 4 per exact one, + 4 "
-        f"for dψ/dθ): limit {t['limit_points_per_s']:.3g} points/s, newton/float64 reaches "
-        f"{100 * t['newton_fraction_of_limit']:.0f} %"
+        f"limit: a polynomial Newton step runs at {t['polynomial_steps_per_s']:.3g} points/s "
+        f"here; a newton angle takes {t['steps_per_solved_angle']} ({t['polynomial_iterations']} "
+        f"steps + the Jacobian solve for dψ/dθ; exact-sine iterations {t['exact_iterations']}, "
+        f"transcendentals per angle {t['transcendentals_per_solved_angle']}; XLA float64 sines "
+        f"{t['sines_per_s']:.3g}/s): limit {t['limit_points_per_s']:.3g} points/s, "
+        f"newton/float64 reaches {100 * t['newton_fraction_of_limit']:.0f} %"
     )
     if "output_costs" in results:
         lines.extend(cost_table(results["output_costs"], results["n_theta"]))

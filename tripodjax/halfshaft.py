@@ -279,67 +279,66 @@ def _step_is_small(old, new, rtol, scale):
     return step <= rtol * (jnp.maximum(jnp.abs(d1), jnp.abs(v1)) + scale) + tiny
 
 
-def _polynomial_steps(consts, delta, v, count):
-    """``count`` Newton steps with the polynomial sines from (Δ, v); returns the last two iterates.
+def _pair(z):
+    """(Δ, v) of z = Δ + iv."""
+    return jnp.real(z), jnp.imag(z)
 
-    Δ and v travel as one complex number Δ + iv through a ``fori_loop``: a step then has a
-    single output, so XLA evaluates it in one fused pass, shared subexpressions once (with
-    two outputs, or unrolled, it splits each step into several passes that recompute them).
-    The first row of the pair is scaled by cos²γ (``row_scaled``): no division but 1/det.
+
+def _polynomial_steps(consts, z, count):
+    """``count`` Newton steps with the polynomial sines from z = Δ + iv; the last two iterates.
+
+    Δ and v travel as one complex number through a ``fori_loop``: a step then has a single
+    output, so XLA evaluates it in one fused pass, shared subexpressions once (with two
+    outputs, or unrolled, it splits each step into several passes that recompute them). The
+    first row of the pair is scaled by cos²γ (``row_scaled``): no division but 1/det.
     """
 
     def step(_, pair):
         z = pair[1]
-        d, w = jnp.real(z), jnp.imag(z)
-        d_delta, d_v = newton_step(*scaled_system(jnp, consts, d, w, True, row_scaled=True))
-        return z, jax.lax.complex(d + d_delta, w + d_v)
+        delta, v = _pair(z)
+        d_delta, d_v = newton_step(*scaled_system(jnp, consts, delta, v, True, row_scaled=True))
+        return z, jax.lax.complex(delta + d_delta, v + d_v)
 
-    z = jax.lax.complex(delta, v)
-    before, after = jax.lax.fori_loop(0, count, step, (z, z))
-    return (jnp.real(before), jnp.imag(before)), (jnp.real(after), jnp.imag(after))
+    return jax.lax.fori_loop(0, count, step, (z, z))
 
 
-def _iterate(consts, scale, rtol, x, limit, max_steps, done):
-    """Newton steps (exact sines) on the stacked (Δ, v) for the points not yet ``done``, until
-    each point's step is small or it has made ``limit`` steps; returns (x, steps, done, singular).
-
-    The loop runs only while some point is active: none, where the polynomial stage settled
-    every point."""
-    shape = x.shape[1:]
+def _iterate(consts, scale, rtol, z, steps, max_steps, done):
+    """Newton steps with the exact sines on z = Δ + iv for the points not yet ``done``, until
+    each point's step is small or its ``steps`` reach ``max_steps``; returns (z, steps, done,
+    singular). The loop runs only while some point is active: not at all where the polynomial
+    stage settled every point."""
 
     def active_of(steps, done):
-        return jnp.logical_not(done) & (steps < limit)
+        return jnp.logical_not(done) & (steps < max_steps)
 
     def cond(carry):
         n, _, steps, done, _ = carry
         return jnp.logical_and(n < max_steps, jnp.any(active_of(steps, done)))
 
     def body(carry):
-        # (Δ, v) travel stacked in one array: XLA then computes the step in one
-        # fusion instead of repeating the sines in one fusion per output.
-        n, x, steps, done, singular = carry
-        d_delta, d_v = newton_step(*scaled_system(jnp, consts, x[0], x[1]))
-        new = jnp.stack([x[0] + d_delta, x[1] + d_v])
-        small = _step_is_small(x, new, rtol, scale)
+        n, z, steps, done, singular = carry
+        old = _pair(z)
+        d_delta, d_v = newton_step(*scaled_system(jnp, consts, *old))
+        new = (old[0] + d_delta, old[1] + d_v)
+        small = _step_is_small(old, new, rtol, scale)
         # A non-finite step ends the point: a singular Jacobian (finite iterate), or NaN input.
-        broken = ~jnp.all(jnp.isfinite(new), axis=0)
+        broken = ~(jnp.isfinite(new[0]) & jnp.isfinite(new[1]))
         active = active_of(steps, done)
         return (
             n + 1,
-            jnp.where(active, new, x),
+            jnp.where(active, jax.lax.complex(*new), z),
             steps + active.astype(jnp.int32),
             done | (active & (small | broken)),
-            singular | (active & broken & jnp.all(jnp.isfinite(x), axis=0)),
+            singular | (active & broken & jnp.isfinite(z)),
         )
 
-    zeros = jnp.zeros(shape, bool)
-    start = (jnp.int32(0), x, jnp.zeros(shape, jnp.int32), done, zeros)
-    _, x, steps, done, singular = jax.lax.while_loop(cond, body, start)
-    return x, steps, done, singular
+    start = (jnp.int32(0), z, steps, done, jnp.zeros(done.shape, bool))
+    _, z, steps, done, singular = jax.lax.while_loop(cond, body, start)
+    return z, steps, done, singular
 
 
 def _newton(R, l, gamma0, theta, rtol, max_steps):
-    """Newton iterations from the closed form, elementwise; returns (Δ, v) stacked, steps, result.
+    """Newton iterations from the closed form, elementwise; returns Δ, v, steps, result.
 
     Two stages within ``max_steps`` steps in all. First ``POLYNOMIAL_STEPS + 1`` Newton steps
     (or ``max_steps`` if fewer) on the pair with the polynomial sines of
@@ -353,23 +352,23 @@ def _newton(R, l, gamma0, theta, rtol, max_steps):
     consts = layout_constants(jnp, R, l, gamma0, theta)
     scale = first_order_amplitude(consts)
     bad_input = _nonfinite_inputs(R, l, gamma0, theta)
-    shape = bad_input.shape
-    guess = [jnp.broadcast_to(u, shape) for u in analytic_unknowns(jnp, consts, theta)]
+    guess = jnp.broadcast_arrays(*analytic_unknowns(jnp, consts, theta), bad_input)[:2]
+    guess = jax.lax.complex(*guess)
     polynomial_steps = min(POLYNOMIAL_STEPS + 1, max_steps)
-    before, (delta, v) = _polynomial_steps(consts, *guess, polynomial_steps)
-    finite = jnp.isfinite(delta) & jnp.isfinite(v)
-    keep = _in_polynomial_range(consts, *before) & finite
-    done = keep & _step_is_small(before, (delta, v), rtol, scale)
-    keep = keep & _in_polynomial_range(consts, delta, v)
-    x = jnp.where(keep, jnp.stack([delta, v]), jnp.stack(guess))
-    used = jnp.where(keep, polynomial_steps, 0)
-    x, steps, done, singular = _iterate(consts, scale, rtol, x, max_steps - used, max_steps, done)
-    steps = used + steps
+    before, z = _polynomial_steps(consts, guess, polynomial_steps)
+    before, after = _pair(before), _pair(z)
+    keep = _in_polynomial_range(consts, *before) & jnp.isfinite(z)
+    done = keep & _step_is_small(before, after, rtol, scale)
+    keep = keep & _in_polynomial_range(consts, *after)
+    z = jnp.where(keep, z, guess)
+    steps = jnp.where(keep, jnp.int32(polynomial_steps), jnp.int32(0))
+    z, steps, done, singular = _iterate(consts, scale, rtol, z, steps, max_steps, done)
     result = code_where(done, RESULTS.successful, RESULTS.max_steps_reached)
     result = code_where(singular & ~bad_input, RESULTS.singular_jacobian, result)
-    nonfinite = bad_input | ~jnp.all(jnp.isfinite(x), axis=0)
+    nonfinite = bad_input | ~jnp.isfinite(z)
     result = code_where(nonfinite & ~(singular & ~bad_input), RESULTS.nonfinite, result)
-    return x, steps, result
+    delta, v = _pair(z)
+    return delta, v, steps, result
 
 
 def _implicit_solver(rtol, max_steps):
@@ -387,7 +386,7 @@ def _implicit_solver(rtol, max_steps):
 
     def solve_jvp(primals, tangents):
         out = solve(*primals)
-        x = out[0]
+        delta, v = out[:2]
         # Only the inputs being differentiated enter the JVP (the others carry symbolic zeros).
         active = [i for i, t in enumerate(tangents) if not isinstance(t, SymbolicZero)]
 
@@ -396,20 +395,19 @@ def _implicit_solver(rtol, max_steps):
             for i, value in zip(active, moving, strict=False):
                 args[i] = value
             consts = layout_constants(jnp, *args)
-            return scaled_system(jnp, consts, x[0], x[1], True, row_scaled=True)
+            return scaled_system(jnp, consts, delta, v, True, row_scaled=True)
 
         (_, jacobian), (dg, _) = jax.jvp(
             system_at_solution,
             tuple(primals[i] for i in active),
             tuple(tangents[i] for i in active),
         )
-        dx = jnp.stack(newton_step(dg, jacobian))
         # The polynomial sines hold inside their range, which holds every solution of the layout
         # domain (|Δ/2| ≤ 0.03 there): beyond it the derivatives are NaN, never a wrong number.
-        consts = layout_constants(jnp, *primals)
-        dx = jnp.where(_in_polynomial_range(consts, x[0], x[1]), dx, jnp.nan)
-        no_tangent = [np.zeros(a.shape, jax.dtypes.float0) for a in out[1:]]
-        return out, (jnp.broadcast_to(dx, x.shape), *no_tangent)
+        valid = _in_polynomial_range(layout_constants(jnp, *primals), delta, v)
+        dx = [jnp.where(valid, d, jnp.nan) for d in newton_step(dg, jacobian)]
+        no_tangent = [np.zeros(a.shape, jax.dtypes.float0) for a in out[2:]]
+        return out, (*(jnp.broadcast_to(d, delta.shape) for d in dx), *no_tangent)
 
     solve.defjvp(solve_jvp, symbolic_zeros=True)
     return solve
@@ -418,8 +416,8 @@ def _implicit_solver(rtol, max_steps):
 def _analytic(R, l, gamma0, theta, corrections):
     """The closed form plus ``corrections`` Newton steps with polynomial sines; (Δ, v)."""
     consts = layout_constants(jnp, R, l, gamma0, theta)
-    delta, v = jnp.broadcast_arrays(*analytic_unknowns(jnp, consts, theta))
-    return _polynomial_steps(consts, delta, v, corrections)[1]
+    guess = jax.lax.complex(*jnp.broadcast_arrays(*analytic_unknowns(jnp, consts, theta)))
+    return _pair(_polynomial_steps(consts, guess, corrections)[1])
 
 
 def _diagnostics(R, l, gamma0, theta, delta, v, small_angles=False):
@@ -570,8 +568,8 @@ def _solve(layout, theta, solver):
     R, l, gamma0, theta = _working_arrays(layout, theta)
     if isinstance(solver, Newton):
         rtol = default_rtol(theta.dtype) if solver.rtol is None else solver.rtol
-        x, steps, result = _implicit_solver(rtol, solver.max_steps)(R, l, gamma0, theta)
-        return _finish(R, l, gamma0, theta, x[0], x[1], result, steps)
+        delta, v, steps, result = _implicit_solver(rtol, solver.max_steps)(R, l, gamma0, theta)
+        return _finish(R, l, gamma0, theta, delta, v, result, steps)
     delta, v = _analytic(R, l, gamma0, theta, solver.corrections)
     return _finish_analytic(R, l, gamma0, theta, delta, v, solver)
 
