@@ -1,5 +1,6 @@
 """Kinematic metrics (seed §2.10, §2.11.3): seed numbers, independent solve, gradients, limits."""
 
+import dataclasses
 import math
 
 import jax
@@ -9,6 +10,9 @@ import pytest
 import reference
 
 from tripodjax import TABLE_2_1, Layout, kinematic_metrics, seed_case
+from tripodjax.bench import domain_layouts
+from tripodjax.kinematics import metrics_from, revolution
+from tripodjax.solvers import Analytic
 
 COMPARED = ("delta_pp", "irregularity", "gamma_pp", "ecc_max")
 
@@ -142,3 +146,43 @@ def test_status_and_throw():
     assert int(capped.result) == RESULTS.max_steps_reached and not bool(capped.converged)
     with pytest.raises(SolverError, match="kinematic_metrics: point \\[1\\] at θ = 0.174533 rad"):
         kinematic_metrics(seed_case("g25"), 36, Newton(max_steps=1), throw=True)
+
+
+SERIES_METRICS = ("delta_pp", "irregularity", "gamma_pp", "gamma_max", "ecc_max", "result")
+
+
+@pytest.mark.parametrize("dtype, rtol", [(np.float64, 1e-12), (np.float32, 1e-5)])
+@pytest.mark.parametrize(
+    "solver, n_theta",
+    [("analytic", 360), ("closed_form", 60), (Analytic(corrections=1, nodes=12), 120)],
+)
+def test_series_extremes_equal_the_interpolated_answer_on_the_whole_grid(
+    solver, n_theta, dtype, rtol
+):
+    """An interpolating level's peak-to-peak metrics come from its node series on half the
+    period (Δ odd, γ even in θ): the same numbers as its interpolated answer at every angle of
+    the grid, over the domain's corners, edges and γ0 = 0 (its one-sided limit)."""
+    R, l, g0 = domain_layouts(48, seed=6)
+    R[-1], g0[-1] = 40.0, 0.0
+    batch = Layout(*(np.asarray(a, dtype) for a in (R, l, g0)))
+
+    def both(layout):
+        sol, rates = revolution(layout, n_theta, solver, with_rates=True)
+        assert sol.series is not None
+        grid = dataclasses.replace(sol, series=None)
+        return (
+            metrics_from(layout, sol, rates, SERIES_METRICS),
+            metrics_from(layout, grid, rates, SERIES_METRICS),
+        )
+
+    fast, grid = jax.jit(jax.vmap(both))(batch)
+    for name in SERIES_METRICS:
+        np.testing.assert_allclose(fast[name], grid[name], rtol=rtol, atol=0, err_msg=name)
+    slopes = jax.grad(lambda g: metrics_from(*_at_gamma0(g, solver))["irregularity"])(0.0)
+    assert float(slopes) == pytest.approx(1.5 * 40.0 / 500.0, rel=1e-6)
+
+
+def _at_gamma0(gamma0, solver):
+    layout = Layout(40.0, 500.0, gamma0)
+    sol, rates = revolution(layout, 60, solver, with_rates=True)
+    return layout, sol, rates, ("irregularity",)

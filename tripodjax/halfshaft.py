@@ -32,6 +32,7 @@ and an error estimate. The solve works
 elementwise on arrays of any shape.
 """
 
+import dataclasses
 import functools
 from types import ModuleType
 from typing import Any, TypeAlias
@@ -499,13 +500,17 @@ class PeriodSeries:
     Attributes:
         delta_sin: b_m [rad], m = 1 … M/2 − 1, shape (…, M/2 − 1).
         v_cos: a_m [–], m = 0 … M/2, shape (…, M/2 + 1).
+        result: the worst [`RESULTS`][tripodjax.results.RESULTS] code over the period (int32).
+        error_estimate: the largest error estimate over the period [–].
     """
 
     delta_sin: jax.Array
     v_cos: jax.Array
+    result: jax.Array
+    error_estimate: jax.Array
 
 
-def _series_of_nodes(delta, v):
+def _series_of_nodes(delta, v, result, error_estimate):
     """The [`PeriodSeries`][tripodjax.halfshaft.PeriodSeries] of node values (…, M) at 3θ_k = 2πk/M."""
     nodes = delta.shape[-1]
     k = np.arange(nodes)
@@ -518,6 +523,8 @@ def _series_of_nodes(delta, v):
     return PeriodSeries(
         delta_sin=jnp.matmul(delta, sine, precision=highest),
         v_cos=jnp.matmul(v, cosine, precision=highest),
+        result=result,
+        error_estimate=error_estimate,
     )
 
 
@@ -610,9 +617,17 @@ def _solve_period(layout, theta, solver):
     residual, _ = _diagnostics(R, l, gamma0, theta, delta, v)
     # The interpolated answer is finite wherever the node values are.
     finite = jnp.all(jnp.isfinite(at_nodes[0]) & jnp.isfinite(at_nodes[1]))
-    diagnostics = (residual, jnp.max(estimate))
-    series = _series_of_nodes(*at_nodes)
-    return _finish_analytic(R, l, gamma0, theta, delta, v, solver, diagnostics, finite, series)
+    estimate = jnp.max(estimate)
+    # The worst code of the angles, formed per layout (the codes of _finish_analytic, reduced).
+    bad_layout = ~(jnp.isfinite(R) & jnp.isfinite(l) & jnp.isfinite(gamma0) & finite)
+    good_theta = jnp.isfinite(theta)
+    worst = code_where(bad_layout | ~jnp.all(good_theta), RESULTS.nonfinite, RESULTS.successful)
+    flagged = ~bad_layout & jnp.any(good_theta) & (estimate > solver.validity)
+    worst = code_where(flagged, RESULTS.outside_validity, worst)
+    series = _series_of_nodes(*at_nodes, worst, estimate)
+    return _finish_analytic(
+        R, l, gamma0, theta, delta, v, solver, (residual, estimate), finite, series
+    )
 
 
 def trigonometric_interpolation(theta: ArrayLike, nodes: int) -> jax.Array:
@@ -674,7 +689,10 @@ def _finish(R, l, gamma0, theta, delta, v, result, steps, diagnostics=None, seri
     nan_where_bad = jnp.where(bad_input, jnp.nan, 1.0).astype(delta.dtype)
     delta, v = delta * nan_where_bad, v * nan_where_bad
     if series is not None:  # one layout (scalar inputs): its coefficients alike
-        series = jax.tree_util.tree_map(lambda c: c * jnp.max(nan_where_bad), series)
+        nan_if_bad = jnp.max(nan_where_bad)
+        series = dataclasses.replace(
+            series, delta_sin=series.delta_sin * nan_if_bad, v_cos=series.v_cos * nan_if_bad
+        )
     return _solution(theta, gamma0, delta, v, residual, estimate, result, steps, series)
 
 

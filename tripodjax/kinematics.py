@@ -155,9 +155,8 @@ def _half_period_table(n_period, orders, trig, dtype):
 
 
 def _on_half_period(coefficients, table):
-    """Σ_m c_m · table[m, j]: a series on the half period (terms written out, so XLA fuses
-    them with the extreme that follows instead of storing the values)."""
-    return sum(coefficients[..., m, None] * table[m] for m in range(table.shape[0]))
+    """Σ_m c_m · table[m, j]: a series on the half period (one matrix product per batch)."""
+    return jnp.matmul(coefficients, table, precision=jax.lax.Precision.HIGHEST)
 
 
 class _Revolution:
@@ -227,9 +226,17 @@ class _Revolution:
             b = self.sol.series.delta_sin
             rate = 3.0 * jnp.arange(1, b.shape[-1] + 1, dtype=b.dtype) * b
             shape = _shape_of(rate, self.amplitude, self._first_harmonic(b, -3.0))
-            return self.amplitude * _ptp(_on_half_period(shape, self._cosine_table[1:]))
+            return self.amplitude * _ptp(
+                _on_half_period(shape, self._cosine_table[1 : b.shape[-1] + 1])
+            )
         limit = -3.0 * jnp.cos(3.0 * self.sol.theta)
         return self.amplitude * _ptp(_shape_of(self.rates.delta, self.amplitude, limit))
+
+    def worst_result(self):
+        """The worst result code over the revolution (from the series' own when present)."""
+        if self.sol.series is not None:
+            return self.sol.series.result.astype(jnp.int32)
+        return jnp.max(self.sol.result).astype(jnp.int32)
 
     def delta_gamma_max(self):
         if self.sol.series is not None:
@@ -283,10 +290,12 @@ _METRICS = {
     "spider_orbit_x": lambda r: _ptp(r.spider[0]),
     "spider_orbit_y": lambda r: _ptp(r.spider[1]),
     "spider_orbit_z": lambda r: _ptp(r.spider[2]),
-    "converged": lambda r: jnp.all(r.sol.result == RESULTS.successful),
+    "converged": lambda r: r.worst_result() == RESULTS.successful,
     "max_residual": lambda r: jnp.max(jnp.abs(r.sol.residual)),
-    "error_estimate": lambda r: jnp.max(r.sol.error_estimate),
-    "result": lambda r: jnp.max(r.sol.result).astype(jnp.int32),
+    "error_estimate": lambda r: (
+        r.sol.series.error_estimate if r.sol.series is not None else jnp.max(r.sol.error_estimate)
+    ),
+    "result": lambda r: r.worst_result(),
 }
 NEEDS_RATES = ("irregularity",)
 METRICS = tuple(_METRICS)
