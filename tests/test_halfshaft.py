@@ -167,7 +167,7 @@ def test_newton_iterations_stay_few_over_the_domain():
         lay = Layout(*(np.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0)))
         sol = solve_halfshaft(lay, theta)
         assert (np.asarray(sol.result) == RESULTS.successful).all()
-        # The polynomial steps, then one exact step that confirms the point everywhere.
+        # Five polynomial steps, the last one the stopping test, settle every point.
         assert int(np.max(sol.iterations)) == halfshaft.POLYNOMIAL_STEPS + 1
 
 

@@ -555,7 +555,8 @@ def solve_halfshaft(
         [`HalfshaftSolution`][tripodjax.halfshaft.HalfshaftSolution] with arrays of the broadcast shape.
 
     Jit-compiled (the solver is static). Newton starts from the closed form
-    and takes at most 5 steps in float64 (3 in float32) over the domain.
+    and takes 5 steps (polynomial sines, the last one the stopping test) at
+    every point of the domain, in float64 and float32.
     Every float field is differentiable (``jax.jvp``/``jax.grad``, any order)
     w.r.t. θ and the layout. Works in float32 and float64: the working dtype
     is that of ``theta`` and the layout combined. Non-finite input gives NaN

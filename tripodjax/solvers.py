@@ -65,11 +65,12 @@ class Newton:
         max_steps: iteration cap, an integer 1 … 1000; points that reach it
             report ``RESULTS.max_steps_reached``.
 
-    The first iterations (4, or ``max_steps − 1`` if fewer) use polynomial sines
-    of the small angles, exact to roundoff in their range; the last ones the exact
-    sines, until the step is below tolerance (see ``halfshaft._newton``). Measured
-    over the whole domain (R/l ≤ 0.2, γ0 ≤ 45°): 5 iterations in all, one of them
-    exact, in float32 and float64; metrics exact to roundoff.
+    The first 5 iterations (or ``max_steps`` if fewer) use polynomial sines of
+    the small angles, exact to roundoff in their range, and the last of them is
+    the stopping test; any point not settled then goes on with the exact sines
+    until the step is below tolerance (see ``halfshaft._newton``). Measured over
+    the whole domain (R/l ≤ 0.2, γ0 ≤ 45°): 5 iterations in all, none with the
+    exact sines, in float32 and float64; metrics exact to roundoff.
     """
 
     rtol: float | None = None
@@ -100,10 +101,10 @@ class Analytic:
     (the interpolation's share; at every angle, ``nodes=None``: below 2e-6).
     One correction: irregularity 1.2e-3, delta_pp 3e-4, gamma_pp 3.8e-3,
     ecc_max 1.2e-3; the closed form alone: 4.2 %, 0.6 %, 23 %, 7.3 %.
-    Speed (``python -m tripodjax.bench``, 2-core CPU under load): 15–68× newton
-    in the same dtype for the four metrics, about 20× with
-    [`sweep`][tripodjax.sweep.sweep]'s default outputs (status included);
-    the README's cost table gives each output's cost.
+    Speed (``python -m tripodjax.bench``, 2-core CPU): about 7× newton in the
+    same dtype with [`sweep`][tripodjax.sweep.sweep]'s default outputs (newton
+    itself solves with no transcendental function); the README's cost table
+    gives each output's cost.
 
     Every point carries an error estimate (the next Newton step with exact
     sines, relative to the first-order amplitude e(γ0)/|h|; over a revolution
@@ -128,7 +129,9 @@ class Analytic:
             interpolation errs most), 2·nodes angles per period, so they
             include the interpolation at a fraction of the cost of forming
             them at every grid angle; over such a revolution the estimate is
-            one number (the largest), reported at every angle.
+            one number (the largest), reported at every angle. The
+            peak-to-peak metrics come from the nodes' sine and cosine series
+            on half the period (Δ is odd, γ even in θ), not from every angle.
     """
 
     corrections: int = 2
