@@ -6,7 +6,9 @@ itself never changes JAX's configuration.
 """
 
 import os
+import shutil
 import sys
+import tempfile
 
 import jax
 import pytest
@@ -20,6 +22,35 @@ for _name in [m for m in sys.modules if m == "tripodjax" or m.startswith("tripod
     del sys.modules[_name]
 
 jax.config.update("jax_enable_x64", True)
+
+_JAX_CACHE = "JAX_COMPILATION_CACHE_DIR"
+_JAX_CACHE_MIN_SECONDS = "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"
+
+
+def pytest_configure(config):
+    """One persistent compilation cache for the run: the xdist workers, the notebooks' kernels
+    and the command's subprocesses compile a program another process compiled once (the
+    controller makes it before the workers start; they and every subprocess inherit it)."""
+    if not hasattr(config, "workerinput") and _JAX_CACHE not in os.environ:
+        config.stash[_cache_key] = os.environ[_JAX_CACHE] = tempfile.mkdtemp(
+            prefix="tripodjax-tests-jax-cache-"
+        )
+        os.environ[_JAX_CACHE_MIN_SECONDS] = "0.2"
+    if _JAX_CACHE in os.environ:
+        jax.config.update("jax_compilation_cache_dir", os.environ[_JAX_CACHE])
+        seconds = float(os.environ.get(_JAX_CACHE_MIN_SECONDS, 1.0))
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", seconds)
+
+
+def pytest_unconfigure(config):
+    directory = config.stash.get(_cache_key, None)
+    if directory:
+        shutil.rmtree(directory, ignore_errors=True)
+        for name in (_JAX_CACHE, _JAX_CACHE_MIN_SECONDS):
+            os.environ.pop(name, None)
+
+
+_cache_key = pytest.StashKey[str]()
 
 
 @pytest.fixture
