@@ -340,6 +340,26 @@ def test_gaf_inputs_are_a_pytree_with_a_static_model():
     assert float(grad.torque) > 0 and grad.model == "printed"
 
 
+def test_a_level_that_interpolates_counts_its_nodes_in_a_chunk():
+    from tripodjax.sweep import _points_per_layout
+
+    series = ("delta_pp", "irregularity", "gamma_pp", "ecc_max", "result")
+    analytic = solvers.Analytic()
+    assert _points_per_layout(360, solvers.Newton(), series) == 120
+    assert _points_per_layout(360, analytic, series) == 2 * 8 + 15  # < 120: larger chunks
+    # An output over every angle, or a level solving at every angle: the period's angles.
+    assert _points_per_layout(360, analytic, series + ("gaf_rms",)) == 120
+    assert _points_per_layout(360, analytic, ("roller_stroke",)) == 120
+    assert _points_per_layout(360, solvers.Analytic(nodes=None), series) == 120
+    assert _points_per_layout(18, analytic, series) == 6  # fewer angles than nodes
+    # The larger chunks change no result.
+    batch = layouts(40)
+    default = sweep(batch, solver="analytic")
+    small = sweep(batch, solver="analytic", chunk_size=7)
+    for name in default:
+        np.testing.assert_array_equal(default[name], small[name])
+
+
 def test_map_chunks_evaluates_rows_in_padded_chunks():
     rows = {"a": np.arange(11.0), "b": np.arange(22.0).reshape(11, 2)}
     calls = []

@@ -528,6 +528,18 @@ def _series_of_nodes(delta, v, result, error_estimate):
     )
 
 
+def _series_at(series, theta):
+    """(Δ, v) of a [`PeriodSeries`][tripodjax.halfshaft.PeriodSeries] at the angles θ (a NumPy array)."""
+    dtype = series.delta_sin.dtype
+    highest = jax.lax.Precision.HIGHEST
+    sines = np.sin(3.0 * np.outer(np.arange(1, series.delta_sin.shape[-1] + 1), theta))
+    cosines = np.cos(3.0 * np.outer(np.arange(series.v_cos.shape[-1]), theta))
+    return (
+        jnp.matmul(series.delta_sin, jnp.asarray(sines, dtype), precision=highest),
+        jnp.matmul(series.v_cos, jnp.asarray(cosines, dtype), precision=highest),
+    )
+
+
 def solve_halfshaft(
     layout: Layout,
     theta: ArrayLike,
@@ -608,11 +620,18 @@ def _solve_period(layout, theta, solver):
         return (jnp.matmul(weights, u, precision=jax.lax.Precision.HIGHEST) for u in at_nodes)
 
     delta, v = interpolate(theta)
+    coefficients = _series_of_nodes(*at_nodes, None, None)
     # The error estimate where the answer is formed and where the interpolation errs most: at
-    # the nodes and midway between them (2·nodes angles, not every grid angle; one per period).
-    sample_theta = jnp.asarray(np.arange(2 * nodes) * (0.5 * spacing), theta.dtype)
+    # the nodes and midway between them, on the half period (Δ odd, v even: the other half
+    # mirrors it), from the series.
+    sample_theta = np.arange(nodes + 1) * (0.5 * spacing)
     _, estimate = _diagnostics(
-        R, l, gamma0, sample_theta, *interpolate(sample_theta), small_angles=True
+        R,
+        l,
+        gamma0,
+        jnp.asarray(sample_theta, theta.dtype),
+        *_series_at(coefficients, sample_theta),
+        small_angles=True,
     )
     # The residual at every angle is computed only where it is used (max_residual).
     residual, _ = _diagnostics(R, l, gamma0, theta, delta, v)
@@ -625,7 +644,7 @@ def _solve_period(layout, theta, solver):
     worst = code_where(bad_layout | ~jnp.all(good_theta), RESULTS.nonfinite, RESULTS.successful)
     flagged = ~bad_layout & jnp.any(good_theta) & (estimate > solver.validity)
     worst = code_where(flagged, RESULTS.outside_validity, worst)
-    series = _series_of_nodes(*at_nodes, worst, estimate)
+    series = dataclasses.replace(coefficients, result=worst, error_estimate=estimate)
     return _finish_analytic(
         R, l, gamma0, theta, delta, v, solver, (residual, estimate), finite, series
     )

@@ -299,6 +299,17 @@ _METRICS = {
 }
 NEEDS_RATES = ("irregularity",)
 METRICS = tuple(_METRICS)
+# Formed from the PeriodSeries where the solution carries one (no array over the grid's angles).
+FROM_SERIES = (
+    "delta_pp",
+    "irregularity",
+    "gamma_pp",
+    "gamma_max",
+    "ecc_max",
+    "converged",
+    "error_estimate",
+    "result",
+)
 
 
 def metrics_from(

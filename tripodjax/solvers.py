@@ -126,7 +126,8 @@ class Analytic:
             to the errors above (measured over the domain) and make the level
             several times faster. The error estimate and result codes are
             formed at the nodes and midway between them (where the
-            interpolation errs most), 2·nodes angles per period, so they
+            interpolation errs most) on half the period, nodes + 1 angles
+            (Δ is odd and v even in θ: the other half mirrors them), so they
             include the interpolation at a fraction of the cost of forming
             them at every grid angle; over such a revolution the estimate is
             one number (the largest), reported at every angle. The
@@ -164,7 +165,7 @@ def ClosedForm(validity: float = 1.0 - 1e-9, nodes: int | None = 8) -> "Analytic
     printed formula at each angle; over a revolution it is evaluated at
     ``nodes`` angles per period and interpolated as ``Analytic`` is (the
     interpolation's < 3e-5 relative is far below the level's own error), so its
-    error estimate costs 2·nodes evaluations per period, not one per angle.
+    error estimate costs nodes + 1 evaluations per period, not one per angle.
     """
     return Analytic(corrections=0, validity=validity, nodes=nodes)
 
