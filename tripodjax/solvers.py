@@ -101,7 +101,7 @@ class Analytic:
     (the interpolation's share; at every angle, ``nodes=None``: below 2e-6).
     One correction: irregularity 1.2e-3, delta_pp 3e-4, gamma_pp 3.8e-3,
     ecc_max 1.2e-3; the closed form alone: 4.2 %, 0.6 %, 23 %, 7.3 %.
-    Speed (``python -m tripodjax.bench``, 2-core CPU): about 7× newton in the
+    Speed (``python -m tripodjax.bench``, 2-core CPU): about 10× newton in the
     same dtype with [`sweep`][tripodjax.sweep.sweep]'s default outputs (newton
     itself solves with no transcendental function); the README's cost table
     gives each output's cost.
