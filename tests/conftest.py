@@ -25,12 +25,14 @@ jax.config.update("jax_enable_x64", True)
 
 _JAX_CACHE = "JAX_COMPILATION_CACHE_DIR"
 _JAX_CACHE_MIN_SECONDS = "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"
+_cache_key = pytest.StashKey[str]()
 
 
 def pytest_configure(config):
     """One persistent compilation cache for the run: the xdist workers, the notebooks' kernels
-    and the command's subprocesses compile a program another process compiled once (the
-    controller makes it before the workers start; they and every subprocess inherit it)."""
+    and the Python subprocesses compile a program another process compiled once (the
+    controller makes it before the workers start; they inherit it). `optimize-joint` keeps
+    its own cache, in the TRIPODJAX_CACHE_DIR each test gives it."""
     if not hasattr(config, "workerinput") and _JAX_CACHE not in os.environ:
         config.stash[_cache_key] = os.environ[_JAX_CACHE] = tempfile.mkdtemp(
             prefix="tripodjax-tests-jax-cache-"
@@ -48,9 +50,6 @@ def pytest_unconfigure(config):
         shutil.rmtree(directory, ignore_errors=True)
         for name in (_JAX_CACHE, _JAX_CACHE_MIN_SECONDS):
             os.environ.pop(name, None)
-
-
-_cache_key = pytest.StashKey[str]()
 
 
 @pytest.fixture

@@ -11,7 +11,8 @@ import reference
 
 from tripodjax import TABLE_2_1, Layout, kinematic_metrics, seed_case
 from tripodjax.bench import domain_layouts
-from tripodjax.kinematics import metrics_from, revolution
+from tripodjax.kinematics import FROM_SERIES, metrics_from, revolution
+from tripodjax.results import RESULTS
 from tripodjax.solvers import Analytic
 
 COMPARED = ("delta_pp", "irregularity", "gamma_pp", "ecc_max")
@@ -148,9 +149,6 @@ def test_status_and_throw():
         kinematic_metrics(seed_case("g25"), 36, Newton(max_steps=1), throw=True)
 
 
-SERIES_METRICS = ("delta_pp", "irregularity", "gamma_pp", "gamma_max", "ecc_max", "result")
-
-
 @pytest.mark.parametrize("dtype, rtol", [(np.float64, 1e-12), (np.float32, 1e-5)])
 @pytest.mark.parametrize(
     "solver, n_theta",
@@ -171,15 +169,39 @@ def test_series_extremes_equal_the_interpolated_answer_on_the_whole_grid(
         assert sol.series is not None
         grid = dataclasses.replace(sol, series=None)
         return (
-            metrics_from(layout, sol, rates, SERIES_METRICS),
-            metrics_from(layout, grid, rates, SERIES_METRICS),
+            metrics_from(layout, sol, rates, FROM_SERIES),
+            metrics_from(layout, grid, rates, FROM_SERIES),
         )
 
     fast, grid = jax.jit(jax.vmap(both))(batch)
-    for name in SERIES_METRICS:
+    for name in FROM_SERIES:
         np.testing.assert_allclose(fast[name], grid[name], rtol=rtol, atol=0, err_msg=name)
     slopes = jax.grad(lambda g: metrics_from(*_at_gamma0(g, solver))["irregularity"])(0.0)
     assert float(slopes) == pytest.approx(1.5 * 40.0 / 500.0, rel=1e-6)
+
+
+def test_series_metrics_need_no_angle_of_the_grid():
+    """FROM_SERIES (which lets sweep take larger chunks) holds only metrics formed from the
+    series: the same numbers when every per-angle field is NaN and every code a failure."""
+    layout = Layout(30.0, 500.0, 0.3)
+    sol, rates = revolution(layout, 360, "analytic", with_rates=True)
+
+    def spoiled(s):
+        floats = {
+            name: jnp.full_like(getattr(s, name), jnp.nan)
+            for name in ("psi", "gamma", "delta", "delta_gamma", "residual", "error_estimate")
+        }
+        if s.result.dtype == jax.dtypes.float0:  # the rates: no code to spoil
+            return dataclasses.replace(s, **floats)
+        failed = jnp.full_like(s.result, RESULTS.nonfinite)
+        return dataclasses.replace(s, **floats, result=failed, converged=failed == 0)
+
+    names = FROM_SERIES + ("roller_stroke",)
+    clean = metrics_from(layout, sol, rates, names)
+    blind = metrics_from(layout, spoiled(sol), spoiled(rates), names)
+    for name in FROM_SERIES:
+        np.testing.assert_array_equal(blind[name], clean[name], err_msg=name)
+    assert np.isfinite(clean["roller_stroke"]) and np.isnan(blind["roller_stroke"])
 
 
 def _at_gamma0(gamma0, solver):

@@ -528,16 +528,17 @@ def _series_of_nodes(delta, v, result, error_estimate):
     )
 
 
-def _series_at(series, theta):
-    """(Δ, v) of a [`PeriodSeries`][tripodjax.halfshaft.PeriodSeries] at the angles θ (a NumPy array)."""
-    dtype = series.delta_sin.dtype
-    highest = jax.lax.Precision.HIGHEST
-    sines = np.sin(3.0 * np.outer(np.arange(1, series.delta_sin.shape[-1] + 1), theta))
-    cosines = np.cos(3.0 * np.outer(np.arange(series.v_cos.shape[-1]), theta))
-    return (
-        jnp.matmul(series.delta_sin, jnp.asarray(sines, dtype), precision=highest),
-        jnp.matmul(series.v_cos, jnp.asarray(cosines, dtype), precision=highest),
-    )
+def _series_on(coefficients: jax.Array, first_order: int, phase: np.ndarray, trig) -> jax.Array:
+    """Σ_m c_m · trig(m·x) at the phases x = 3θ (a NumPy array), m = first_order, first_order + 1, ….
+
+    ``trig``: ``np.sin`` or ``np.cos``; ``coefficients`` (…, M). One matrix product with a
+    constant table, at full precision on every backend (a float32 dot may otherwise run in
+    TF32/bfloat16 on accelerators). Evaluates a [`PeriodSeries`][tripodjax.halfshaft.PeriodSeries]
+    (``delta_sin`` from order 1 with sines, ``v_cos`` from order 0 with cosines).
+    """
+    orders = first_order + np.arange(coefficients.shape[-1])
+    table = jnp.asarray(trig(np.outer(orders, phase)), coefficients.dtype)
+    return jnp.matmul(coefficients, table, precision=jax.lax.Precision.HIGHEST)
 
 
 def solve_halfshaft(
@@ -624,13 +625,14 @@ def _solve_period(layout, theta, solver):
     # The error estimate where the answer is formed and where the interpolation errs most: at
     # the nodes and midway between them, on the half period (Δ odd, v even: the other half
     # mirrors it), from the series.
-    sample_theta = np.arange(nodes + 1) * (0.5 * spacing)
+    sample_phase = np.arange(nodes + 1) * (np.pi / nodes)  # 3θ
     _, estimate = _diagnostics(
         R,
         l,
         gamma0,
-        jnp.asarray(sample_theta, theta.dtype),
-        *_series_at(coefficients, sample_theta),
+        jnp.asarray(sample_phase / 3.0, theta.dtype),
+        _series_on(coefficients.delta_sin, 1, sample_phase, np.sin),
+        _series_on(coefficients.v_cos, 0, sample_phase, np.cos),
         small_angles=True,
     )
     # The residual at every angle is computed only where it is used (max_residual).

@@ -27,6 +27,7 @@ from tripodjax import joint, solvers
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.halfshaft import (
     HalfshaftSolution,
+    _series_on,
     _sinc,
     _solve_period,
     first_order_amplitude,
@@ -148,17 +149,6 @@ def _shape_of(x, scale, limit):
     return jnp.where(ok, x * (1.0 / jnp.where(ok, scale, 1.0)), limit + 0.0 * x)
 
 
-def _half_period_table(n_period, orders, trig, dtype):
-    """trig(3mθ_j) for m in ``orders`` and θ_j of the first half of ``period_grid`` (j ≤ n/2)."""
-    j = np.arange(n_period // 2 + 1)
-    return jnp.asarray(trig(2.0 * np.pi * np.outer(orders, j) / n_period), dtype)
-
-
-def _on_half_period(coefficients, table):
-    """Σ_m c_m · table[m, j]: a series on the half period (one matrix product per batch)."""
-    return jnp.matmul(coefficients, table, precision=jax.lax.Precision.HIGHEST)
-
-
 class _Revolution:
     """Quantities shared by several metrics, each built once and only when asked for.
 
@@ -180,22 +170,15 @@ class _Revolution:
         """A = e(γ0)/|h|, the first-order amplitude of Δ (0 at γ0 = 0, slope R/(4l))."""
         return first_order_amplitude(layout_constants(jnp, self.R, self.l, self.gamma0, 0.0))
 
-    @functools.cached_property
-    def _sine_table(self):
-        """sin 3mθ_j, m = 1 … M/2 − 1, on the half period (the odd part of the series)."""
-        orders = np.arange(1, self.sol.series.delta_sin.shape[-1] + 1)
-        return _half_period_table(self.sol.theta.shape[-1], orders, np.sin, self.R.dtype)
-
-    @functools.cached_property
-    def _cosine_table(self):
-        """cos 3mθ_j, m = 0 … M/2, on the half period (the even part of the series)."""
-        orders = np.arange(self.sol.series.v_cos.shape[-1])
-        return _half_period_table(self.sol.theta.shape[-1], orders, np.cos, self.R.dtype)
+    def _on_half_period(self, coefficients, first_order, trig):
+        """A series in 3θ on the grid's half period θ_j, j ≤ n/2 (3θ_j = 2πj/n)."""
+        n = self.sol.theta.shape[-1]
+        return _series_on(coefficients, first_order, 2.0 * np.pi * np.arange(n // 2 + 1) / n, trig)
 
     @functools.cached_property
     def delta_gamma_on_half_period(self):
         """γ − γ0 = γ0 v on the half period, from the series."""
-        return self.gamma0 * _on_half_period(self.sol.series.v_cos, self._cosine_table)
+        return self.gamma0 * self._on_half_period(self.sol.series.v_cos, 0, np.cos)
 
     def _first_harmonic(self, coefficients, first):
         """The γ0 → 0 limit of a shape series: ``first`` in the first harmonic, 0 beyond."""
@@ -217,7 +200,7 @@ class _Revolution:
         if self.sol.series is not None:  # Δ odd: ptp = 2 max |Δ| over the half period
             b = self.sol.series.delta_sin
             shape = _shape_of(b, self.amplitude, self._first_harmonic(b, -1.0))
-            return self.amplitude * 2.0 * jnp.max(jnp.abs(_on_half_period(shape, self._sine_table)))
+            return self.amplitude * 2.0 * jnp.max(jnp.abs(self._on_half_period(shape, 1, np.sin)))
         limit = -jnp.sin(3.0 * self.sol.theta)
         return self.amplitude * _ptp(_shape_of(self.sol.delta, self.amplitude, limit))
 
@@ -226,9 +209,7 @@ class _Revolution:
             b = self.sol.series.delta_sin
             rate = 3.0 * jnp.arange(1, b.shape[-1] + 1, dtype=b.dtype) * b
             shape = _shape_of(rate, self.amplitude, self._first_harmonic(b, -3.0))
-            return self.amplitude * _ptp(
-                _on_half_period(shape, self._cosine_table[1 : b.shape[-1] + 1])
-            )
+            return self.amplitude * _ptp(self._on_half_period(shape, 1, np.cos))
         limit = -3.0 * jnp.cos(3.0 * self.sol.theta)
         return self.amplitude * _ptp(_shape_of(self.rates.delta, self.amplitude, limit))
 
