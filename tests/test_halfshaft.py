@@ -319,3 +319,23 @@ def test_error_estimate_from_polynomial_sines_equals_the_exact_one(dtype):
     far = jnp.full_like(delta, 0.6)  # |Δ/2| = 0.3 > POLYNOMIAL_LIMIT
     _, outside = halfshaft._diagnostics(R, l, g0, theta, far, v, small_angles=True)
     assert bool(jnp.all(jnp.isinf(outside)))
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_half_angle_sines_are_the_sines_to_roundoff_within_their_limit(dtype):
+    """The layout's sin and cos of γ0/2 are Taylor polynomials: equal to mpmath's to a few
+    ulps for |γ0/2| ≤ HALF_ANGLE_LIMIT (γ0 up to 2 rad, the domain's 45° well inside), their
+    derivatives each other's, and NaN beyond the limit, never an inaccurate number."""
+    mpmath = pytest.importorskip("mpmath")
+    x = np.concatenate([np.linspace(-1.0, 1.0, 401), [np.pi / 8, 1e-30, 0.0]]).astype(dtype)
+    sin, cos = (np.asarray(a) for a in halfshaft.half_angle_sincos(jnp, jnp.asarray(x)))
+    exact_sin = np.array([float(mpmath.sin(mpmath.mpf(float(t)))) for t in x])
+    exact_cos = np.array([float(mpmath.cos(mpmath.mpf(float(t)))) for t in x])
+    eps = np.finfo(dtype).eps
+    np.testing.assert_allclose(sin, exact_sin, rtol=4 * eps, atol=0)
+    np.testing.assert_allclose(cos, exact_cos, rtol=4 * eps, atol=0)
+    slope = jax.vmap(jax.grad(lambda t: halfshaft.half_angle_sincos(jnp, t)[0]))(jnp.asarray(x))
+    np.testing.assert_allclose(slope, exact_cos, rtol=8 * eps, atol=0)
+    limit = halfshaft.HALF_ANGLE_LIMIT
+    beyond = jnp.asarray([np.nextafter(dtype(limit), dtype(2)), -1.5, np.inf, np.nan], dtype)
+    assert np.all(np.isnan(np.asarray(halfshaft.half_angle_sincos(jnp, beyond))))

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 import reference
 
-from tripodjax import TABLE_2_1, Layout, kinematic_metrics, seed_case
+from tripodjax import TABLE_2_1, Layout, kinematic_metrics, kinematics, seed_case, sweep
 from tripodjax.bench import domain_layouts
-from tripodjax.kinematics import FROM_SERIES, metrics_from, revolution
+from tripodjax.kinematics import FROM_SERIES, metrics_and_window, metrics_from, revolution
 from tripodjax.results import RESULTS
 from tripodjax.solvers import Analytic
 
@@ -202,6 +202,89 @@ def test_series_metrics_need_no_angle_of_the_grid():
     for name in FROM_SERIES:
         np.testing.assert_array_equal(blind[name], clean[name], err_msg=name)
     assert np.isfinite(clean["roller_stroke"]) and np.isnan(blind["roller_stroke"])
+
+
+SERIES_EXTREMES = ("delta_pp", "irregularity", "gamma_pp", "gamma_max", "ecc_max")
+
+
+@pytest.mark.parametrize("dtype, rtol", [(np.float64, 4e-16), (np.float32, 4e-7)])
+@pytest.mark.parametrize(
+    "solver, n_theta", [("analytic", 360), ("analytic", 3600), (Analytic(nodes=4), 18)]
+)
+def test_the_window_holds_the_grid_extremes_over_the_domain(solver, n_theta, dtype, rtol):
+    """The few angles of the series' extremes give every angle's over the domain (its
+    edges, corner and γ0 = 0 included): the check holds everywhere, and the numbers match."""
+    R, l, g0 = domain_layouts(64, seed=11)
+    R[-1], l[-1], g0[-1] = 40.0, 500.0, 0.0
+    batch = Layout(*(np.asarray(a, dtype) for a in (R, l, g0)))
+
+    def both(layout):
+        sol, rates = revolution(layout, n_theta, solver, with_rates=False)
+        window, holds = metrics_and_window(layout, sol, rates, SERIES_EXTREMES, "window")
+        grid, _ = metrics_and_window(layout, sol, rates, SERIES_EXTREMES, "grid")
+        return window, grid, holds
+
+    window, grid, holds = jax.jit(jax.vmap(both))(batch)
+    assert np.all(holds)
+    for name in SERIES_EXTREMES:
+        np.testing.assert_allclose(window[name], grid[name], rtol=rtol, atol=0, err_msg=name)
+
+
+def test_the_window_check_is_the_bound_it_states():
+    """Random sine and cosine series, harmonics 1…3 (Δ, dΔ/dθ) and 0…4 (γ − γ0), on
+    random even grids: wherever ``_window_holds``, the window's extremes are the grid's
+    (to roundoff: the few angles are summed term by term, the grid by a dot); the check
+    passes often and fails often, and where it fails the window may miss (so it is needed)."""
+    rng = np.random.default_rng(3)
+    count = 4000
+    first = rng.choice([-1.0, 1.0], count) * rng.uniform(0.1, 10.0, count)
+    share = 10.0 ** rng.uniform(-4.0, 0.0, (count, 1))  # the higher harmonics' size
+    sine = np.concatenate([first[:, None], first[:, None] * share * rng.normal(size=(count, 2))], 1)
+    rate = sine * np.array([3.0, 6.0, 9.0])
+    cosine = np.concatenate(
+        [rng.normal(size=(count, 2)), first[:, None] * share * rng.normal(size=(count, 3))], 1
+    )
+    shapes = tuple(jnp.asarray(a) for a in (sine, rate, cosine))
+    checked = missed = 0
+    for n in (6, 40, 120, 374, 1200):
+        holds = np.asarray(kinematics._window_holds(shapes))
+        window = kinematics._window_extremes(shapes, n)
+        grid = kinematics._grid_extremes(shapes, n)
+        equal = np.all(
+            [np.isclose(w, g, rtol=1e-14, atol=0) for w, g in zip(window, grid, strict=True)],
+            axis=0,
+        )
+        assert np.all(equal[holds]), n
+        checked += holds.sum()
+        missed += (~equal[~holds]).sum()
+    assert 0.2 * 5 * count < checked < 0.8 * 5 * count
+    assert missed > 0
+
+
+def test_a_sweep_takes_every_angle_where_the_window_does_not_hold(monkeypatch):
+    """sweep takes the series' extremes from the window when it holds for the whole chunk,
+    else evaluates the chunk again at every angle of the half period. Seen through a window
+    that answers twice the truth: its numbers where the check passes, the grid's where no
+    series can pass it (no window at all)."""
+    batch = Layout(*domain_layouts(16, seed=4))
+
+    def doubled(shapes, n):
+        return tuple(2.0 * e for e in window_extremes(shapes, n))
+
+    def grid(layout):
+        sol, rates = revolution(layout, 360, "analytic", with_rates=False)
+        return metrics_and_window(layout, sol, rates, SERIES_EXTREMES, "grid")[0]
+
+    expected = jax.vmap(grid)(batch)
+    window_extremes = kinematics._window_extremes
+    monkeypatch.setattr(kinematics, "_window_extremes", doubled)
+    # Solvers of their own, so each sweep is compiled with the patches.
+    through_window = sweep(batch, solver=Analytic(validity=0.5), outputs=SERIES_EXTREMES)
+    monkeypatch.setattr(kinematics, "PEAK_WINDOW", 0.0)
+    no_window = sweep(batch, solver=Analytic(validity=0.25), outputs=SERIES_EXTREMES)
+    for name in ("delta_pp", "irregularity", "gamma_pp"):
+        np.testing.assert_allclose(through_window[name], 2.0 * expected[name], rtol=1e-15)
+        np.testing.assert_allclose(no_window[name], expected[name], rtol=4e-16, atol=0)
 
 
 def _at_gamma0(gamma0, solver):

@@ -346,18 +346,25 @@ def test_a_level_that_interpolates_counts_its_nodes_in_a_chunk():
     series = ("delta_pp", "irregularity", "gamma_pp", "ecc_max", "result")
     analytic = solvers.Analytic()
     assert _points_per_layout(360, solvers.Newton(), series) == 120
-    assert _points_per_layout(360, analytic, series) == 2 * 8 + 15  # < 120: larger chunks
+    # Half the 8 nodes solved and 8 estimate samples, at any grid: larger chunks.
+    assert _points_per_layout(360, analytic, series) == 8 // 2 + 8
+    assert _points_per_layout(3600, analytic, series) == 8 // 2 + 8
     # An output over every angle, or a level solving at every angle: the period's angles.
     assert _points_per_layout(360, analytic, series + ("gaf_rms",)) == 120
     assert _points_per_layout(360, analytic, ("roller_stroke",)) == 120
     assert _points_per_layout(360, solvers.Analytic(nodes=None), series) == 120
     assert _points_per_layout(18, analytic, series) == 6  # fewer angles than nodes
-    # The larger chunks change no result.
+    # The larger chunks change no result beyond roundoff (a chunk of 7 rows leaves a remainder
+    # that the CPU's vector loops evaluate apart); the codes not at all.
     batch = layouts(40)
     default = sweep(batch, solver="analytic")
     small = sweep(batch, solver="analytic", chunk_size=7)
     for name in default:
-        np.testing.assert_array_equal(default[name], small[name])
+        if default[name].dtype.kind == "f":
+            eps = np.finfo(default[name].dtype).eps
+            np.testing.assert_allclose(default[name], small[name], rtol=4 * eps, atol=0)
+        else:
+            np.testing.assert_array_equal(default[name], small[name])
 
 
 def test_map_chunks_evaluates_rows_in_padded_chunks():

@@ -63,6 +63,27 @@ def _sinc(xp, y, sin_y):
     return xp.where(small, 1.0 - y * y / 6.0, sin_y / safe)
 
 
+# |γ0|/2 up to which half_angle_sincos equals the sine and cosine to roundoff (γ0 ≤ 2 rad).
+HALF_ANGLE_LIMIT = 1.0
+
+
+def half_angle_sincos(xp: ModuleType, x: XpArray) -> tuple[XpArray, XpArray]:
+    """(sin x, cos x) of the half articulation angle x = γ0/2 by Taylor polynomials to x¹⁹, x¹⁸.
+
+    Exact to roundoff for |x| ≤ ``HALF_ANGLE_LIMIT`` (the first omitted terms, x²¹/21!
+    and x²⁰/20!, are below 1e-18 there; the layout domain has x ≤ π/8), and NaN beyond,
+    never an inaccurate number. Pure arithmetic: XLA fuses it into every consumer of a
+    layout's constants, where a transcendental function would be evaluated again in each.
+    """
+    x2 = x * x
+    sin, cos = 1.0, 1.0
+    for n in range(18, 0, -2):  # Horner in x²: sin x = x(1 − x²/(2·3)(1 − x²/(4·5)(…)))
+        sin = 1.0 - x2 / (n * (n + 1)) * sin
+        cos = 1.0 - x2 / (n * (n - 1)) * cos
+    outside = xp.abs(x) > HALF_ANGLE_LIMIT
+    return xp.where(outside, xp.nan, x * sin), xp.where(outside, xp.nan, cos)
+
+
 def _working_arrays(layout, theta):
     """R, l, γ0 and θ as arrays of the working dtype (that of the inputs combined), unbroadcast."""
     dtype = jnp.result_type(layout.R, layout.l, layout.gamma0, theta, 0.0)
@@ -74,7 +95,7 @@ def layout_constants(
 ) -> dict[str, XpArray]:
     """The loop invariants of the scaled pair for array module ``xp`` (jax.numpy or numpy)."""
     half0 = 0.5 * gamma0
-    s0, c0 = xp.sin(half0), xp.cos(half0)
+    s0, c0 = half_angle_sincos(xp, half0)
     k = R / (2.0 * l)
     return dict(
         half0=half0,
@@ -510,35 +531,68 @@ class PeriodSeries:
     error_estimate: jax.Array
 
 
-def _series_of_nodes(delta, v, result, error_estimate):
-    """The [`PeriodSeries`][tripodjax.halfshaft.PeriodSeries] of node values (…, M) at 3θ_k = 2πk/M."""
-    nodes = delta.shape[-1]
-    k = np.arange(nodes)
+def _series_of_nodes(delta, v):
+    """Δ's sine and v's cosine coefficients (b_m, a_m) from the nodes of half the period.
+
+    ``delta``, ``v``: (…, M/2) values at 3θ_k = 2πk/M, k = 1 … M/2, of M equispaced
+    nodes. The others follow: node 0 (θ = 0) holds Δ = v = 0 exactly, and node M − k
+    holds −Δ_k, v_k (Δ odd, v even), so the M-node discrete Fourier sums fold onto these.
+    Returns (b_m, m = 1 … M/2 − 1; a_m, m = 0 … M/2).
+    """
+    nodes = 2 * delta.shape[-1]
+    k = np.arange(1, nodes // 2 + 1)[:, None]
     m = np.arange(nodes // 2 + 1)
-    phase = 2.0 * np.pi * np.outer(k, m) / nodes
-    weight = np.where((m == 0) | (m == nodes // 2), 1.0, 2.0) / nodes
-    sine = jnp.asarray((np.sin(phase) * weight)[:, 1:-1], delta.dtype)
-    cosine = jnp.asarray(np.cos(phase) * weight, delta.dtype)
-    highest = jax.lax.Precision.HIGHEST
-    return PeriodSeries(
-        delta_sin=jnp.matmul(delta, sine, precision=highest),
-        v_cos=jnp.matmul(v, cosine, precision=highest),
-        result=result,
-        error_estimate=error_estimate,
-    )
+    phase = 2.0 * np.pi * k * m / nodes
+    mirrored = np.where(k == nodes // 2, 1.0, 2.0)  # an inner node stands for its mirror too
+    weight = mirrored * np.where((m == 0) | (m == nodes // 2), 1.0, 2.0) / nodes
+    return _product(delta, (np.sin(phase) * weight)[:, 1:-1]), _product(v, np.cos(phase) * weight)
+
+
+# A product with a constant table of at most this many entries is summed term by term: on a
+# CPU that is faster than a dot call, and the same to the bit however many rows the batch has,
+# which a small dot's kernels are not (measured; the sweep's shards would differ in the last bit).
+_TERM_BY_TERM = 20
+
+
+_REDUCTIONS = {jnp.maximum: jnp.max, jnp.minimum: jnp.min, jnp.add: jnp.sum}
+
+
+def _reduce_last(op, x: jax.Array) -> jax.Array:
+    """``op`` (``jnp.maximum``, ``jnp.minimum`` or ``jnp.add``) over the last axis of ``x``.
+
+    A short axis (at most ``_TERM_BY_TERM`` entries) term by term: XLA fuses that with its
+    neighbours, where a reduction is a pass of its own on a CPU (measured: a few tenths of
+    a millisecond each at 20 000 layouts).
+    """
+    if not 0 < x.shape[-1] <= _TERM_BY_TERM:  # an empty sum is 0 (e.g. no higher harmonic)
+        return _REDUCTIONS[op](x, axis=-1)
+    return functools.reduce(op, [x[..., k] for k in range(x.shape[-1])])
+
+
+def _product(x: jax.Array, table: np.ndarray) -> jax.Array:
+    """x (…, K) @ table (K, J), a NumPy constant, at full precision on every backend.
+
+    A float32 dot may otherwise run in TF32/bfloat16 on accelerators; a small table
+    (``_TERM_BY_TERM``) is summed term by term.
+    """
+    if table.size > _TERM_BY_TERM:
+        table = jnp.asarray(table, x.dtype)
+        return jnp.matmul(x, table, precision=jax.lax.Precision.HIGHEST)
+    total = x[..., :1] * jnp.asarray(table[0], x.dtype)
+    for k in range(1, table.shape[0]):
+        total = total + x[..., k : k + 1] * jnp.asarray(table[k], x.dtype)
+    return total
 
 
 def _series_on(coefficients: jax.Array, first_order: int, phase: np.ndarray, trig) -> jax.Array:
     """Σ_m c_m · trig(m·x) at the phases x = 3θ (a NumPy array), m = first_order, first_order + 1, ….
 
     ``trig``: ``np.sin`` or ``np.cos``; ``coefficients`` (…, M). One matrix product with a
-    constant table, at full precision on every backend (a float32 dot may otherwise run in
-    TF32/bfloat16 on accelerators). Evaluates a [`PeriodSeries`][tripodjax.halfshaft.PeriodSeries]
+    constant table. Evaluates a [`PeriodSeries`][tripodjax.halfshaft.PeriodSeries]
     (``delta_sin`` from order 1 with sines, ``v_cos`` from order 0 with cosines).
     """
     orders = first_order + np.arange(coefficients.shape[-1])
-    table = jnp.asarray(trig(np.outer(orders, phase)), coefficients.dtype)
-    return jnp.matmul(coefficients, table, precision=jax.lax.Precision.HIGHEST)
+    return _product(coefficients, trig(np.outer(orders, phase)))
 
 
 def solve_halfshaft(
@@ -611,9 +665,17 @@ def _solve_period(layout, theta, solver):
     R, l, gamma0, theta = _working_arrays(layout, theta)
     if any(jnp.ndim(a) for a in (R, l, gamma0)):
         return _solve(layout, theta, solver)
-    spacing = 2.0 * np.pi / 3.0 / nodes
-    node_theta = jnp.asarray(np.arange(nodes) * spacing, theta.dtype)
-    at_nodes = _analytic(R, l, gamma0, node_theta, solver.corrections)
+    # Solved at the nodes k = 1 … M/2 of half the period (3θ_k = 2πk/M): at θ = 0 the answer
+    # is Δ = v = 0 exactly (ψ = 0 and γ = γ0 there, 2.9.3), and node M − k mirrors node k
+    # (Δ odd, v even in θ). M/2 angles, a multiple of the CPU's vector width at the default 8.
+    half = nodes // 2
+    node_theta = np.arange(1, half + 1) * (2.0 * np.pi / 3.0 / nodes)
+    solved = _analytic(R, l, gamma0, jnp.asarray(node_theta, theta.dtype), solver.corrections)
+    zero = jnp.zeros(1, theta.dtype)
+    at_nodes = (
+        jnp.concatenate([zero, solved[0], -solved[0][half - 2 :: -1]]),
+        jnp.concatenate([zero, solved[1], solved[1][half - 2 :: -1]]),
+    )
 
     def interpolate(to):
         # Full precision on every backend (a float32 dot may run in TF32/bfloat16 on accelerators).
@@ -621,24 +683,26 @@ def _solve_period(layout, theta, solver):
         return (jnp.matmul(weights, u, precision=jax.lax.Precision.HIGHEST) for u in at_nodes)
 
     delta, v = interpolate(theta)
-    coefficients = _series_of_nodes(*at_nodes, None, None)
+    delta_sin, v_cos = _series_of_nodes(*solved)
     # The error estimate where the answer is formed and where the interpolation errs most: at
-    # the nodes and midway between them, on the half period (Δ odd, v even: the other half
-    # mirrors it), from the series.
-    sample_phase = np.arange(nodes + 1) * (np.pi / nodes)  # 3θ
+    # the nodes and midway between them on the half period (Δ odd, v even: the other half
+    # mirrors it), from the series; not at θ = 0, where the answer is exact.
+    sample_phase = np.arange(1, nodes + 1) * (np.pi / nodes)  # 3θ
     _, estimate = _diagnostics(
         R,
         l,
         gamma0,
         jnp.asarray(sample_phase / 3.0, theta.dtype),
-        _series_on(coefficients.delta_sin, 1, sample_phase, np.sin),
-        _series_on(coefficients.v_cos, 0, sample_phase, np.cos),
+        _series_on(delta_sin, 1, sample_phase, np.sin),
+        _series_on(v_cos, 0, sample_phase, np.cos),
         small_angles=True,
     )
     # The residual at every angle is computed only where it is used (max_residual).
     residual, _ = _diagnostics(R, l, gamma0, theta, delta, v)
     # The interpolated answer is finite wherever the node values are.
-    finite = jnp.all(jnp.isfinite(at_nodes[0]) & jnp.isfinite(at_nodes[1]))
+    finite = jnp.all(jnp.isfinite(solved[0]) & jnp.isfinite(solved[1]))
+    # A reduction, not term by term: that would fuse the samples' Newton step into the
+    # maximum, which XLA then forms with the layout's constants again for every sample.
     estimate = jnp.max(estimate)
     # The worst code of the angles, formed per layout (the codes of _finish_analytic, reduced).
     bad_layout = ~(jnp.isfinite(R) & jnp.isfinite(l) & jnp.isfinite(gamma0) & finite)
@@ -646,7 +710,7 @@ def _solve_period(layout, theta, solver):
     worst = code_where(bad_layout | ~jnp.all(good_theta), RESULTS.nonfinite, RESULTS.successful)
     flagged = ~bad_layout & jnp.any(good_theta) & (estimate > solver.validity)
     worst = code_where(flagged, RESULTS.outside_validity, worst)
-    series = dataclasses.replace(coefficients, result=worst, error_estimate=estimate)
+    series = PeriodSeries(delta_sin, v_cos, result=worst, error_estimate=estimate)
     return _finish_analytic(
         R, l, gamma0, theta, delta, v, solver, (residual, estimate), finite, series
     )
@@ -711,7 +775,8 @@ def _finish(R, l, gamma0, theta, delta, v, result, steps, diagnostics=None, seri
     nan_where_bad = jnp.where(bad_input, jnp.nan, 1.0).astype(delta.dtype)
     delta, v = delta * nan_where_bad, v * nan_where_bad
     if series is not None:  # one layout (scalar inputs): its coefficients alike
-        nan_if_bad = jnp.max(nan_where_bad)
+        bad_layout = _nonfinite_inputs(R, l, gamma0, 0.0) | ~jnp.all(jnp.isfinite(theta))
+        nan_if_bad = jnp.where(bad_layout, jnp.nan, 1.0).astype(delta.dtype)
         series = dataclasses.replace(
             series, delta_sin=series.delta_sin * nan_if_bad, v_cos=series.v_cos * nan_if_bad
         )

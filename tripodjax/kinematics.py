@@ -27,6 +27,7 @@ from tripodjax import joint, solvers
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.halfshaft import (
     HalfshaftSolution,
+    _reduce_last,
     _series_on,
     _sinc,
     _solve_period,
@@ -115,6 +116,84 @@ def _ptp(x, axis=None):
     return jnp.max(x, axis=axis) - jnp.min(x, axis=axis)
 
 
+# Half-width [rad of 3θ] of the window about 3θ = π/2 that holds the peak of |Δ| over the half
+# period whenever Δ's first harmonic dominates as it does over the layout domain (the largest
+# share of the others there, Σ m|b_m|/|b_1| ≈ 0.036 at R/l = 0.2, γ0 = 45°, is a third of sin of it).
+PEAK_WINDOW = 0.1
+
+
+def _half_period(n: int) -> np.ndarray:
+    """The phases 3θ_j = 2πj/n, j = 0 … n/2, of the half period of a grid of n angles a period."""
+    return 2.0 * np.pi * np.arange(n // 2 + 1) / n
+
+
+def _extremes_on(shapes, phases):
+    """max |Δ/A|, max and min of (dΔ/dθ)/A, max and min of γ − γ0, each series at its phases."""
+    (delta, rate, delta_gamma), (at_delta, at_rate, at_delta_gamma) = shapes, phases
+    delta = jnp.abs(_series_on(delta, 1, at_delta, np.sin))
+    rate = _series_on(rate, 1, at_rate, np.cos)
+    delta_gamma = _series_on(delta_gamma, 0, at_delta_gamma, np.cos)
+    return (
+        _reduce_last(jnp.maximum, delta),
+        _reduce_last(jnp.maximum, rate),
+        _reduce_last(jnp.minimum, rate),
+        _reduce_last(jnp.maximum, delta_gamma),
+        _reduce_last(jnp.minimum, delta_gamma),
+    )
+
+
+def _grid_extremes(shapes, n):
+    """The extremes of ``_extremes_on`` over every angle of the grid's half period."""
+    x = _half_period(n)
+    return _extremes_on(shapes, (x, x, x))
+
+
+def _window_extremes(shapes, n):
+    """The same extremes from a few angles of the half period, where ``_window_holds``.
+
+    |Δ| at the angles within ``PEAK_WINDOW`` + one spacing of 3θ = π/2; the cosine
+    series dΔ/dθ and γ − γ0 at the ends 3θ = 0 and π.
+    """
+    x = _half_period(n)
+    near_peak = x[np.abs(x - 0.5 * np.pi) <= PEAK_WINDOW + 2.0 * np.pi / n]
+    ends = x[[0, -1]]
+    return _extremes_on(shapes, (near_peak, ends, ends))
+
+
+def _first_harmonic_dominates(c, first_order, bound):
+    """``bound(|c_1|, (Σ_{m≥2} m|c_m|, Σ_{m≥2} m²|c_m|))`` of a series of orders first_order, …."""
+    orders = first_order + np.arange(c.shape[-1])
+    first = jnp.abs(c[..., 1 - first_order])
+    higher = jnp.abs(c[..., 2 - first_order :])
+    weighted = tuple(
+        _reduce_last(jnp.add, higher * jnp.asarray(orders[2 - first_order :] ** p, c.dtype))
+        for p in (1, 2)
+    )
+    return bound(first, weighted)
+
+
+def _window_holds(shapes):
+    """Whether ``_window_extremes`` equals ``_grid_extremes`` for these series (per layout).
+
+    A cosine series f = Σ c_m cos mx has f(0) and f(π) for its extremes when
+    Σ_{m≥2} m²|c_m| ≤ |c_1| (1 − cos mx ≤ m²(1 − cos x)). For Δ = Σ b_m sin mx: where
+    E1 = Σ_{m≥2} m|b_m| ≤ |b_1| sin w and E2 = Σ_{m≥2} m²|b_m| < |b_1| cos w, dΔ/dx
+    vanishes only within w of π/2 and falls strictly there, so |Δ| rises to one peak
+    and falls on the half period, and the grid's largest |Δ| is at one of the two
+    angles about the peak, both within w + one spacing of π/2.
+    """
+    delta, rate, delta_gamma = shapes
+    sin_w, cos_w = np.sin(PEAK_WINDOW), np.cos(PEAK_WINDOW)
+    peak_in_window = _first_harmonic_dominates(
+        delta, 1, lambda b1, e: (e[0] <= b1 * sin_w) & (e[1] < b1 * cos_w)
+    )
+    ends = [
+        _first_harmonic_dominates(c, k, lambda c1, e: e[1] <= c1)
+        for c, k in ((rate, 1), (delta_gamma, 0))
+    ]
+    return peak_in_window & ends[0] & ends[1]
+
+
 def revolution(
     layout: Layout, n_theta: int, solver: solvers.SolverLike = "newton", *, with_rates: bool
 ) -> tuple[HalfshaftSolution, HalfshaftSolution | None]:
@@ -154,12 +233,15 @@ class _Revolution:
 
     Where the solution carries its [`PeriodSeries`][tripodjax.halfshaft.PeriodSeries]
     (Analytic over a revolution), the extremes of Δ, dΔ/dθ and γ − γ0 over the grid are
-    taken on the first half of the period: Δ is odd and γ even in θ, so the other half
-    repeats the values (Δ with its sign changed).
+    those of the half period (Δ is odd and γ even in θ, so the other half repeats the
+    values, Δ with its sign changed), taken per ``extremes``: ``"grid"`` at every angle
+    of it, ``"window"`` at the few angles where they lie when ``_window_holds`` (the
+    caller's promise), ``"auto"`` the window where it holds, else the grid
+    (``lax.cond``; under ``vmap`` both are evaluated).
     """
 
-    def __init__(self, layout, sol, rates):
-        self.sol, self.rates = sol, rates
+    def __init__(self, layout, sol, rates, extremes="auto"):
+        self.sol, self.rates, self.extremes = sol, rates, extremes
         dtype = sol.theta.dtype
         self.R, self.l, self.gamma0 = (
             jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0)
@@ -170,19 +252,38 @@ class _Revolution:
         """A = e(γ0)/|h|, the first-order amplitude of Δ (0 at γ0 = 0, slope R/(4l))."""
         return first_order_amplitude(layout_constants(jnp, self.R, self.l, self.gamma0, 0.0))
 
-    def _on_half_period(self, coefficients, first_order, trig):
-        """A series in 3θ on the grid's half period θ_j, j ≤ n/2 (3θ_j = 2πj/n)."""
-        n = self.sol.theta.shape[-1]
-        return _series_on(coefficients, first_order, 2.0 * np.pi * np.arange(n // 2 + 1) / n, trig)
-
-    @functools.cached_property
-    def delta_gamma_on_half_period(self):
-        """γ − γ0 = γ0 v on the half period, from the series."""
-        return self.gamma0 * self._on_half_period(self.sol.series.v_cos, 0, np.cos)
-
     def _first_harmonic(self, coefficients, first):
         """The γ0 → 0 limit of a shape series: ``first`` in the first harmonic, 0 beyond."""
         return jnp.zeros(coefficients.shape[-1], coefficients.dtype).at[0].set(first)
+
+    @functools.cached_property
+    def _shapes(self):
+        """The series of Δ/A, (dΔ/dθ)/A (dΔ/dθ = Σ 3m b_m cos 3mθ) and γ − γ0 = γ0 v."""
+        b = self.sol.series.delta_sin
+        rate = 3.0 * jnp.arange(1, b.shape[-1] + 1, dtype=b.dtype) * b
+        return (
+            _shape_of(b, self.amplitude, self._first_harmonic(b, -1.0)),
+            _shape_of(rate, self.amplitude, self._first_harmonic(b, -3.0)),
+            self.gamma0 * self.sol.series.v_cos,
+        )
+
+    @functools.cached_property
+    def series_extremes(self):
+        """max |Δ/A|, max and min of (dΔ/dθ)/A and of γ − γ0 over the grid (see the class)."""
+        n = self.sol.theta.shape[-1]
+        grid = functools.partial(_grid_extremes, n=n)
+        window = functools.partial(_window_extremes, n=n)
+        if self.extremes == "grid":
+            return grid(self._shapes)
+        if self.extremes == "window":
+            return window(self._shapes)
+        return jax.lax.cond(_window_holds(self._shapes), window, grid, self._shapes)
+
+    def window_holds(self):
+        """``_window_holds`` of the series; None where no series extreme was formed."""
+        if "series_extremes" not in vars(self):
+            return None
+        return _window_holds(self._shapes)
 
     @functools.cached_property
     def spider(self):
@@ -198,18 +299,13 @@ class _Revolution:
 
     def delta_pp(self):
         if self.sol.series is not None:  # Δ odd: ptp = 2 max |Δ| over the half period
-            b = self.sol.series.delta_sin
-            shape = _shape_of(b, self.amplitude, self._first_harmonic(b, -1.0))
-            return self.amplitude * 2.0 * jnp.max(jnp.abs(self._on_half_period(shape, 1, np.sin)))
+            return self.amplitude * 2.0 * self.series_extremes[0]
         limit = -jnp.sin(3.0 * self.sol.theta)
         return self.amplitude * _ptp(_shape_of(self.sol.delta, self.amplitude, limit))
 
     def irregularity(self):
-        if self.sol.series is not None:  # dΔ/dθ = Σ 3m b_m cos 3mθ, even
-            b = self.sol.series.delta_sin
-            rate = 3.0 * jnp.arange(1, b.shape[-1] + 1, dtype=b.dtype) * b
-            shape = _shape_of(rate, self.amplitude, self._first_harmonic(b, -3.0))
-            return self.amplitude * _ptp(self._on_half_period(shape, 1, np.cos))
+        if self.sol.series is not None:
+            return self.amplitude * (self.series_extremes[1] - self.series_extremes[2])
         limit = -3.0 * jnp.cos(3.0 * self.sol.theta)
         return self.amplitude * _ptp(_shape_of(self.rates.delta, self.amplitude, limit))
 
@@ -221,12 +317,12 @@ class _Revolution:
 
     def delta_gamma_max(self):
         if self.sol.series is not None:
-            return jnp.max(self.delta_gamma_on_half_period)
+            return self.series_extremes[3]
         return jnp.max(self.sol.delta_gamma)
 
     def gamma_pp(self):
         if self.sol.series is not None:
-            return _ptp(self.delta_gamma_on_half_period)
+            return self.series_extremes[3] - self.series_extremes[4]
         return _ptp(self.sol.delta_gamma)
 
     def roller_axial_stroke(self):
@@ -309,8 +405,28 @@ def metrics_from(
         m = metrics_from(layout, sol, rates, ("irregularity", "ecc_max", "gamma_pp",
                                               "roller_axial_stroke", "result"))
     """
-    r = _Revolution(layout, sol, rates)
-    return {name: _METRICS[name](r) for name in names}
+    return metrics_and_window(layout, sol, rates, names, "auto")[0]
+
+
+def metrics_and_window(
+    layout: Layout,
+    sol: HalfshaftSolution,
+    rates: HalfshaftSolution | None,
+    names: Iterable[str],
+    extremes: str,
+) -> tuple[dict[str, jax.Array], jax.Array | None]:
+    """[`metrics_from`][tripodjax.kinematics.metrics_from] with the series' extremes taken per ``extremes``.
+
+    ``extremes``: ``"grid"``, ``"window"`` or ``"auto"`` (see ``_Revolution``). Returns the
+    metrics and whether the window holds the grid's extremes (per layout; None where
+    no extreme of a [`PeriodSeries`][tripodjax.halfshaft.PeriodSeries] was formed). A batch
+    evaluation takes ``"window"`` for every layout, and ``"grid"`` for the batch unless
+    the window holds for all of it (e.g. [`sweep`][tripodjax.sweep.sweep]): ``"auto"``
+    under ``vmap`` evaluates both.
+    """
+    r = _Revolution(layout, sol, rates, extremes)
+    metrics = {name: _METRICS[name](r) for name in names}
+    return metrics, r.window_holds()
 
 
 def kinematic_metrics(
