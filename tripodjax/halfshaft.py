@@ -554,7 +554,7 @@ def _series_of_nodes(delta, v):
 _TERM_BY_TERM = 20
 
 
-_REDUCTIONS = {jnp.maximum: jnp.max, jnp.minimum: jnp.min, jnp.add: jnp.sum}
+_REDUCTIONS: dict[Any, Any] = {jnp.maximum: jnp.max, jnp.minimum: jnp.min, jnp.add: jnp.sum}
 
 
 def _reduce_last(op, x: jax.Array) -> jax.Array:
@@ -576,8 +576,8 @@ def _product(x: jax.Array, table: np.ndarray) -> jax.Array:
     (``_TERM_BY_TERM``) is summed term by term.
     """
     if table.size > _TERM_BY_TERM:
-        table = jnp.asarray(table, x.dtype)
-        return jnp.matmul(x, table, precision=jax.lax.Precision.HIGHEST)
+        constant = jnp.asarray(table, x.dtype)
+        return jnp.matmul(x, constant, precision=jax.lax.Precision.HIGHEST)
     total = x[..., :1] * jnp.asarray(table[0], x.dtype)
     for k in range(1, table.shape[0]):
         total = total + x[..., k : k + 1] * jnp.asarray(table[k], x.dtype)

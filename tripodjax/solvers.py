@@ -101,8 +101,8 @@ class Analytic:
     (the interpolation's share; at every angle, ``nodes=None``: below 2e-6).
     One correction: irregularity 1.2e-3, delta_pp 3e-4, gamma_pp 3.8e-3,
     ecc_max 1.2e-3; the closed form alone: 4.2 %, 0.6 %, 23 %, 7.3 %.
-    Speed (``python -m tripodjax.bench``, 2-core CPU): about 10× newton in the
-    same dtype with [`sweep`][tripodjax.sweep.sweep]'s default outputs (newton
+    Speed (``python -m tripodjax.bench``, 2-core CPU): about 25× newton in
+    float64 with [`sweep`][tripodjax.sweep.sweep]'s default outputs (newton
     itself solves with no transcendental function); the README's cost table
     gives each output's cost.
 
@@ -124,15 +124,18 @@ class Analytic:
             angle. Δ and v are smooth in θ (each harmonic about 50× below the
             one before at R/l = 0.2, γ0 = 45°), so 8 nodes add < 3e-5 relative
             to the errors above (measured over the domain) and make the level
-            several times faster. The error estimate and result codes are
-            formed at the nodes and midway between them (where the
-            interpolation errs most) on half the period, nodes + 1 angles
-            (Δ is odd and v even in θ: the other half mirrors them), so they
-            include the interpolation at a fraction of the cost of forming
-            them at every grid angle; over such a revolution the estimate is
-            one number (the largest), reported at every angle. The
-            peak-to-peak metrics come from the nodes' sine and cosine series
-            on half the period (Δ is odd, γ even in θ), not from every angle.
+            many times faster. Only nodes/2 of them are solved: at θ = 0 the
+            answer is exact, and Δ is odd and v even in θ, so the other half
+            of the period mirrors the first. The error estimate and result
+            codes are formed at the nodes and midway between them (where the
+            interpolation errs most) on half the period, ``nodes`` angles (θ = 0
+            is exact), so they include the interpolation at a fraction of the
+            cost of forming them at every grid angle; over such a revolution
+            the estimate is one number (the largest), reported at every angle.
+            The peak-to-peak metrics come from the nodes' sine and cosine
+            series on half the period, at the few angles where their extremes
+            provably lie (see [`metrics_and_window`][tripodjax.kinematics.metrics_and_window]),
+            not from every angle.
     """
 
     corrections: int = 2
@@ -165,7 +168,7 @@ def ClosedForm(validity: float = 1.0 - 1e-9, nodes: int | None = 8) -> "Analytic
     printed formula at each angle; over a revolution it is evaluated at
     ``nodes`` angles per period and interpolated as ``Analytic`` is (the
     interpolation's < 3e-5 relative is far below the level's own error), so its
-    error estimate costs nodes + 1 evaluations per period, not one per angle.
+    error estimate costs ``nodes`` evaluations per period, not one per angle.
     """
     return Analytic(corrections=0, validity=validity, nodes=nodes)
 
