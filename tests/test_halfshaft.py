@@ -174,12 +174,14 @@ def test_newton_iterations_stay_few_over_the_domain():
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 def test_polynomial_stage_changes_no_digit_and_falls_back_outside_its_range(dtype):
     """The answer equals Newton with the exact sines alone (to roundoff) inside the domain, and
-    a point whose small angles leave the polynomials' range (R/l = 0.55, γ0 = 45°: far outside
-    the layout domain, where Newton reaches a solution with |Δ/2| up to 8) restarts from the
-    closed form and still solves the exact pair, with the exact Newton's own steps."""
+    a point whose small angles leave the polynomials' range (R/l = 0.2, γ0 = 70°: outside the
+    layout domain's 45°, where the larger of |Δ/2| and |γ − γ0|/2 reaches 0.42) restarts from the
+    closed form and still solves the exact pair, with the exact Newton's own steps. (Not
+    R/l ≈ 0.5 at 45°: there Newton wanders near a singular Jacobian before it settles, and
+    in float32 whether it meets the tolerance depends on how the constants were rounded.)"""
     rng = np.random.default_rng(3)
-    R = np.concatenate([100.0 * rng.uniform(0, 0.2, 30), [55.0]]).astype(dtype)[:, None]
-    g0 = np.concatenate([rng.uniform(0, np.pi / 4, 30), [np.pi / 4]]).astype(dtype)[:, None]
+    R = np.concatenate([100.0 * rng.uniform(0, 0.2, 30), [20.0]]).astype(dtype)[:, None]
+    g0 = np.concatenate([rng.uniform(0, np.pi / 4, 30), [np.radians(70.0)]]).astype(dtype)[:, None]
     l = np.asarray(100.0, dtype)
     theta = np.linspace(0, 2 * np.pi / 3, 24, dtype=dtype)[None, :]
     rtol = halfshaft.default_rtol(dtype)
