@@ -52,6 +52,14 @@ def pytest_unconfigure(config):
             os.environ.pop(name, None)
 
 
+def pytest_collection_modifyitems(config, items):
+    """The notebooks first: they are the longest tests (a kernel each, and its compiles), so
+    the two workers end together; and notebook 08 compiles the chance-constrained solve that
+    test_reliability.py then finds in the run's compilation cache. (Every worker collects the
+    same order, as pytest-xdist requires.)"""
+    items.sort(key=lambda item: item.path.name != "test_notebooks.py")
+
+
 @pytest.fixture
 def float32_default():
     """Run the body with JAX's default float32 configuration."""
