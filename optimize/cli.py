@@ -260,6 +260,10 @@ def _compute(args, spec, command_line):
     # The command's own choice: keep compiled executables for the next run.
     jax.config.update("jax_compilation_cache_dir", _cache_dir())
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+    if jax.default_backend() == "cpu":
+        # JAX's default also names a GPU autotuning folder inside the cache in every entry's
+        # key: a cache copied or moved to another path would miss. Unused on CPU.
+        jax.config.update("jax_persistent_cache_enable_xla_caches", "none")
     from tripodjax.optimize import document, report
     from tripodjax.optimize._compiled import export_cache, rows_per_call
     from tripodjax.optimize.problem import (
