@@ -70,7 +70,7 @@ def _pullback(structure, values, x, lists, cotangents):
 
     def model(lists):
         merged = {s: dict(values[s], **lists.get(s, {})) for s in values}
-        f, c, grad_f, jac, _, _ = _evaluation(structure, merged)[3](x)
+        f, c, grad_f, jac, _, _ = _evaluation(structure, merged)[-1](x)
         return f, c, grad_f, jac
 
     _, pull = jax.vjp(model, lists)
