@@ -138,8 +138,11 @@ def _evaluate_chunk(layouts, gaf, *, n_theta, solver, outputs):
     gaf_names = tuple(name for name in outputs if name in GAF_OUTPUTS)
     with_rates = bool(gaf_names) or any(name in NEEDS_RATES for name in kinematic)
 
-    def one(layout, extremes):
-        sol, rates = revolution(layout, n_theta, solver, with_rates=with_rates)
+    def solve(layout):
+        return revolution(layout, n_theta, solver, with_rates=with_rates)
+
+    def evaluate(layout, solved, extremes):
+        sol, rates = solved
         result, window_holds = metrics_and_window(layout, sol, rates, kinematic, extremes)
         if gaf_names:
             g = gaf_from_revolution(layout, sol, rates, gaf)
@@ -151,14 +154,16 @@ def _evaluate_chunk(layouts, gaf, *, n_theta, solver, outputs):
         return {name: result[name] for name in outputs}, window_holds
 
     # A series' extremes (an interpolating level) from a few angles where that provably
-    # gives every angle's, which holds over the layout domain; else the chunk again at every angle.
-    out, window_holds = jax.vmap(functools.partial(one, extremes="window"))(layouts)
+    # gives every angle's, which holds over the layout domain; else the chunk's metrics again
+    # at every angle, from the same solve (compiled once).
+    solved = jax.vmap(solve)(layouts)
+    out, window_holds = jax.vmap(functools.partial(evaluate, extremes="window"))(layouts, solved)
     if window_holds is None:
         return out
     return jax.lax.cond(
         jnp.all(window_holds),
         lambda: out,
-        lambda: jax.vmap(functools.partial(one, extremes="grid"))(layouts)[0],
+        lambda: jax.vmap(functools.partial(evaluate, extremes="grid"))(layouts, solved)[0],
     )
 
 
