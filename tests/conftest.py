@@ -26,18 +26,25 @@ jax.config.update("jax_enable_x64", True)
 _JAX_CACHE = "JAX_COMPILATION_CACHE_DIR"
 _JAX_CACHE_MIN_SECONDS = "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"
 _cache_key = pytest.StashKey[str]()
+_COMMAND_CACHE = "TRIPODJAX_CACHE_DIR"
+_command_cache_key = pytest.StashKey[str]()
 
 
 def pytest_configure(config):
     """One persistent compilation cache for the run: the xdist workers, the notebooks' kernels
     and the Python subprocesses compile a program another process compiled once (the
-    controller makes it before the workers start; they inherit it). `optimize-joint` keeps
-    its own cache, in the TRIPODJAX_CACHE_DIR each test gives it."""
-    if not hasattr(config, "workerinput") and _JAX_CACHE not in os.environ:
-        config.stash[_cache_key] = os.environ[_JAX_CACHE] = tempfile.mkdtemp(
-            prefix="tripodjax-tests-jax-cache-"
+    controller makes it before the workers start; they inherit it). Likewise one cache of
+    `optimize-joint` (TRIPODJAX_CACHE_DIR) for the run, out of the user's home: every run of
+    the command with a structure that one ran before loads its programs."""
+    if not hasattr(config, "workerinput"):
+        if _JAX_CACHE not in os.environ:
+            config.stash[_cache_key] = os.environ[_JAX_CACHE] = tempfile.mkdtemp(
+                prefix="tripodjax-tests-jax-cache-"
+            )
+            os.environ[_JAX_CACHE_MIN_SECONDS] = "0.2"
+        config.stash[_command_cache_key] = os.environ[_COMMAND_CACHE] = tempfile.mkdtemp(
+            prefix="tripodjax-tests-command-cache-"
         )
-        os.environ[_JAX_CACHE_MIN_SECONDS] = "0.2"
     if _JAX_CACHE in os.environ:
         jax.config.update("jax_compilation_cache_dir", os.environ[_JAX_CACHE])
         seconds = float(os.environ.get(_JAX_CACHE_MIN_SECONDS, 1.0))
@@ -45,11 +52,15 @@ def pytest_configure(config):
 
 
 def pytest_unconfigure(config):
-    directory = config.stash.get(_cache_key, None)
-    if directory:
-        shutil.rmtree(directory, ignore_errors=True)
-        for name in (_JAX_CACHE, _JAX_CACHE_MIN_SECONDS):
-            os.environ.pop(name, None)
+    for key, names in (
+        (_cache_key, (_JAX_CACHE, _JAX_CACHE_MIN_SECONDS)),
+        (_command_cache_key, (_COMMAND_CACHE,)),
+    ):
+        directory = config.stash.get(key, None)
+        if directory:
+            shutil.rmtree(directory, ignore_errors=True)
+            for name in names:
+                os.environ.pop(name, None)
 
 
 def pytest_collection_modifyitems(config, items):

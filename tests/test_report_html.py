@@ -81,10 +81,8 @@ SWITCH = {"life": {"loads.M_max": 0.0123, "hertz.P_d": -0.0456}}
 
 def run_cli(*args):
     command = [sys.executable, "-P", "-c", "from tripodjax.optimize.cli import command; command()"]
-    env = dict(
-        os.environ, TRIPODJAX_CACHE_DIR=os.path.join(tempfile.gettempdir(), "tripodjax-test-cache")
-    )
-    return subprocess.run([*command, *args], capture_output=True, text=True, timeout=900, env=env)
+    # The command's cache: the run's (conftest).
+    return subprocess.run([*command, *args], capture_output=True, text=True, timeout=900)
 
 
 @pytest.fixture(scope="module")
