@@ -379,7 +379,8 @@ def test_family_and_pareto_front_in_one_batch():
     assert family[1].design["R"] == pytest.approx(
         optimize.solve(SPEC, progress=False).design["R"], rel=1e-6
     )
-    front = optimize.pareto_front(SPEC, [0.5, 1.0, 4.0])
+    # Two scenarios, as the family: the batch's shape, and so its compiled program, is the same.
+    front = optimize.pareto_front(SPEC, [0.5, 4.0])
     gaf = [r.quantities["gaf_rms"] for r in front]
     assert gaf[0] >= gaf[-1] - 1e-6
     with pytest.raises(ValueError, match="gamma0_deg"):

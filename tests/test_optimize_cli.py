@@ -156,14 +156,16 @@ def test_cli_bad_files_and_out_exit_2_before_computing(tmp_path):
 
 
 def test_cli_infeasible_spec_says_so_with_a_strict_report(tmp_path):
-    spec = tmp_path / "small.toml"
-    spec.write_text("[constraints]\nmax_outer_diameter = 50.0\n")
+    spec = tmp_path / "long_life.toml"
+    # No joint within the bounds lasts 1e9 km. A number of the default spec: its programs reused.
+    spec.write_text("[life]\nrequired_km = 1e9\n")
     out = tmp_path / "out"
     result = run_cli(str(spec), "--out", str(out), "--progress", "off")
     assert result.returncode == 1, result.stderr
     assert "infeasible" in result.stderr and "Traceback" not in result.stderr
     report = strict_json(out / "report.json")
     assert "infeasible" in report["message"] and report["status"]["feasible"] is False
+    assert "life" in report["message"]
 
 
 def test_cli_non_finite_problem_says_nonfinite_not_successful(tmp_path, cli_run):
