@@ -141,30 +141,28 @@ def _evaluate_chunk(layouts, gaf, *, n_theta, solver, outputs):
     def solve(layout):
         return revolution(layout, n_theta, solver, with_rates=with_rates)
 
-    def evaluate(layout, solved, extremes):
-        sol, rates = solved
-        result, window_holds = metrics_and_window(layout, sol, rates, kinematic, extremes)
-        if gaf_names:
-            g = gaf_from_revolution(layout, sol, rates, gaf)
-            result.update(gaf_rms=g.rms, gaf_peak=g.peak, gaf_third_order=g.third_order)
-            if "result" in result:
-                result["result"] = worst(result["result"], g.result)
-                if "converged" in result:
-                    result["converged"] = result["result"] == RESULTS.successful
-        return {name: result[name] for name in outputs}, window_holds
+    def metrics(layout, solved, extremes):
+        return metrics_and_window(layout, *solved, kinematic, extremes)
 
     # A series' extremes (an interpolating level) from a few angles where that provably
     # gives every angle's, which holds over the layout domain; else the chunk's metrics again
     # at every angle, from the same solve (compiled once).
     solved = jax.vmap(solve)(layouts)
-    out, window_holds = jax.vmap(functools.partial(evaluate, extremes="window"))(layouts, solved)
-    if window_holds is None:
-        return out
-    return jax.lax.cond(
-        jnp.all(window_holds),
-        lambda: out,
-        lambda: jax.vmap(functools.partial(evaluate, extremes="grid"))(layouts, solved)[0],
-    )
+    result, window_holds = jax.vmap(functools.partial(metrics, extremes="window"))(layouts, solved)
+    if window_holds is not None:
+        result = jax.lax.cond(
+            jnp.all(window_holds),
+            lambda: result,
+            lambda: jax.vmap(functools.partial(metrics, extremes="grid"))(layouts, solved)[0],
+        )
+    if gaf_names:
+        g = jax.vmap(lambda layout, s: gaf_from_revolution(layout, *s, gaf))(layouts, solved)
+        result.update(gaf_rms=g.rms, gaf_peak=g.peak, gaf_third_order=g.third_order)
+        if "result" in result:
+            result["result"] = worst(result["result"], g.result)
+            if "converged" in result:
+                result["converged"] = result["result"] == RESULTS.successful
+    return {name: result[name] for name in outputs}
 
 
 def default_chunk_size(points_per_row: int, devices: Sequence[jax.Device] | None = None) -> int:
