@@ -1,0 +1,536 @@
+"""The halfshaft's sections, statically and in fatigue (the company workbook, seed §4.3, sheets 5–7).
+
+Every section that carries the torque (the shaft's cross-sections A-A, B-B,
+C-C and both joints' stems; seed fig. 4.3.5) is a solid or hollow circle of
+outer diameter Øe and inner diameter Øi (0 for a round bar), induction-hardened
+to a depth h with a transition of depth t below it. Units: mm, N·m, MPa.
+
+**Strength profile** (seed §4.3, sheet 6, fig. 4.3.6). At the depth δ = Øe/2 − r
+the ultimate strength falls linearly from the surface value σ_R,s (from the
+micro-hardness) to (1 − Δ) σ_R,s at δ = h (Δ the "% UTS reduction at max depth",
+10 % in the workbook), then linearly to the core's σ_R,c at δ = h + t, and
+stays there. Its kinks are at r_o = Øe/2, r_o − h and r_TR = r_o − h − t, the
+end of the transformed layer.
+
+**Static check** (fig. 4.3.6). The shear τ = T r / J (J = π(Øe⁴ − Øi⁴)/32) is
+linear in r and the allowed shear τ_adm(r) = σ_R(r) / (C_s √3) piecewise linear,
+so their ratio is monotonic between the kinks: the safety S(r) = τ_adm(r)/τ(r)
+is taken at the three kink radii (its minimum over the section is the smallest
+of the three; the workbook's 1817 and 1049 MPa at the surface, 575 and 332 MPa
+in the core are σ_R/C_s and σ_R/(C_s √3)). The torque is the largest working
+torque with the shock factor k_s (seed §4.3, sheet 6: "la coppia massima
+aumentata del fattore di shock"), forward and backward, i.e.
+`LoadCycles.M_max_forward` and `M_max_backward` (1154 and 750 N·m for the
+workbook's vehicle). The sheet prints no number here; the engine-side torque
+(8015 N·m in 1st gear) is not a torque the wheel can react.
+
+**Fatigue check** (fig. 4.3.7), at r_o and r_TR. For each driving mode m, gear
+g and engine condition c (`tripodjax.vehicle.ENGINE_CONDITIONS`) one row:
+
+- the load torque: the working torque T_w[m, g, c] (adhesion-limited, with k_s)
+  for mean torque, maximum torque and maximum power; the engine brake torque
+  T_eb[g] = T_brake · i_g without k_s (the working torque of the brake
+  condition over k_s); each cycle runs from the load to the engine brake, the
+  brake rows from the gear's maximum-torque load;
+- stresses σ = √3 τ (pure torsion), σ_m = (σ_load + σ_eb)/2, σ_a = (σ_load −
+  σ_eb)/2, the ratio r = σ_a/σ_m;
+- the allowed amplitude at 10⁶ cycles on the constant-ratio line of Goodman's
+  diagram, σ_lim = 1 / (1/σ_f + |σ_m|/(σ_a σ_R)), σ_f = σ_R / q with q the
+  UTS / fatigue-limit ratio (1.6 or 2 in the workbook);
+- cycles to failure on the semi-log line from (10³, σ_R) to (10⁶, σ_lim),
+  log₁₀ N = 3 + 3 (σ_R − σ_a)/(σ_R − σ_lim), without an endurance limit;
+- cycle counts n = w_m N_rev u[m, g, c] p(ω): mode weight × the mileage's
+  revolutions × the relative use × the event rate p(ω) = 10^(a + b ω) at the
+  shaft speed ω [rad/s], the line through (10 rad/s, 5 %) and (250 rad/s, 0.2 %)
+  (`EventRate`, fig. 4.3.5). The engine brake's use of a gear is its own plus
+  the revolutions that no condition claims, shared in proportion to the
+  gear's driving use (the sheet's share(g) · (1 − Σ u)/Σ u);
+- Miner's sum D = Σ n/N per radius; the section passes when D < 1.
+
+**Readings** (``reading="consistent"``, the default, or ``"workbook"``) where the
+sheet is silent or inconsistent:
+
+- *the 1st gear's engine-brake counts.* ``consistent``: with the event rate like
+  every row. ``workbook``: the revolutions without p(ω) (the sheet's 164 176
+  cycles against 6 813 with it, seed fig. 4.3.7);
+- *the strength at r_TR in fatigue.* ``consistent``: the profile's value
+  there, the core's σ_R,c (690 MPa). ``workbook``: σ_R,c (1 + Δ) = 759 MPa,
+  the sheet's number (its rule is not printed; this one reproduces it).
+
+Both readings keep the sheet's engine-brake sign: a torque reversal (T_eb < 0)
+in 1st gear only, a same-sign unload in the other gears and reverse (the sheet's
+means and amplitudes). An engine brake drags the wheels in every gear, but under
+the sheet's S–N line (anchored at σ_a = σ_R at 10³ cycles whatever the ratio) a
+reversal *lowers* the damage (the constant-ratio line's σ_lim rises faster than
+σ_a): with a reversal in every gear the workbook's outboard stem would get 0.010
+and 0.028 instead of about 0.08 and 0.12. Until the S–N anchor is settled the
+sheet's, more conservative, signs stay.
+
+Where the sheet's 2nd gear sport rows take 1154 N·m (the 1st gear's adhesion
+limit, also in its fig. 4.3.4), this module takes the chain's 1103 N·m, as the
+sheet's own intercity and city rows do. The inboard stem's 20.44 mm (sheet 5)
+fails both checks at that size although the sheet says "Positive"; it is read
+as a typing error, not a reading (28.44 mm passes).
+
+Every number is a pytree leaf: ``jit``, ``vmap`` (over sections, materials or
+vehicles) and ``grad`` through all of them. Inputs are checked at the Python
+boundary (one line naming the field, the value and the allowed range);
+inside ``jit`` an input outside its domain gives NaN, never a plausible number.
+"""
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.typing import ArrayLike
+
+from tripodjax._checks import (
+    check,
+    check_choice,
+    check_instance,
+    check_non_negative,
+    check_positive,
+    check_range,
+    check_real,
+    checked_pytree_dataclass,
+)
+from tripodjax._pytree import pytree_dataclass
+from tripodjax.hertz import _nan_unless
+from tripodjax.vehicle import DrivingModes, LoadCycles
+
+__all__ = [
+    "READINGS",
+    "EventRate",
+    "FatigueCheck",
+    "FatigueCycles",
+    "Material",
+    "Section",
+    "StaticCheck",
+    "fatigue_check",
+    "fatigue_cycles",
+    "polar_moment",
+    "static_check",
+    "strength_profile",
+]
+
+READINGS = ("consistent", "workbook")
+SQRT3 = math.sqrt(3.0)
+RPM_TO_RAD_S = 2.0 * math.pi / 60.0
+
+
+def _concrete(*values):
+    """The values as NumPy arrays, or None when any is traced (relations are then not checked)."""
+    arrays = [check_real("value", v) for v in values]
+    return None if any(a is None for a in arrays) else arrays
+
+
+@checked_pytree_dataclass
+class Section:
+    """One cross-section that carries the torque (seed fig. 4.3.5), with its hardened layer.
+
+    Attributes:
+        outer_diameter: Øe [mm], > 0 (at a spline, its root).
+        hardened_depth: h [mm], ≥ 0 (0: not quenched).
+        transition_depth: t [mm], ≥ 0; h + t ≤ (Øe − Øi)/2.
+        inner_diameter: Øi [mm], 0 ≤ Øi < Øe (0, the default: a round bar).
+    """
+
+    outer_diameter: ArrayLike
+    hardened_depth: ArrayLike
+    transition_depth: ArrayLike
+    inner_diameter: ArrayLike = 0.0
+
+    def __post_init__(self) -> None:
+        check_positive(**{"Section.outer_diameter": self.outer_diameter})
+        for k in ("hardened_depth", "transition_depth", "inner_diameter"):
+            check_non_negative(f"Section.{k}", getattr(self, k), " mm")
+        arrays = _concrete(
+            self.outer_diameter, self.inner_diameter, self.hardened_depth, self.transition_depth
+        )
+        if arrays is None:
+            return
+        outer, inner, h, t = np.broadcast_arrays(*arrays)
+        check(
+            "Section.inner_diameter",
+            inner,
+            lambda a: a < outer,
+            f"0 ≤ inner_diameter < outer_diameter (= {_first(outer, a=inner >= outer)} mm)",
+        )
+        wall = (outer - inner) / 2.0
+        beyond = h + t > wall * (1.0 + 1e-12)
+        check(
+            "Section.hardened_depth + transition_depth",
+            h + t,
+            lambda a: ~beyond,
+            f"h + t ≤ the wall (Øe − Øi)/2 (= {_first(wall, a=beyond)} mm)",
+        )
+
+
+def _first(values, a):
+    """The first value where the mask ``a`` holds (for an error message), as a float."""
+    return float(values[np.argwhere(a)[0]] if values.ndim else values) if np.any(a) else 0.0
+
+
+@checked_pytree_dataclass
+class Material:
+    """A section's steel and the strength of its induction-hardened layer (seed fig. 4.3.5).
+
+    Attributes:
+        core_uts: σ_R,c, the core's ultimate strength [MPa], > 0 (690 for C53 and 42CrMo4).
+        surface_uts: σ_R,s, the surface's, from the micro-hardness [MPa]; (1 − Δ) σ_R,s ≥ σ_R,c.
+        depth_drop: Δ, the strength lost from the surface to the depth h [–], 0 ≤ Δ < 1.
+        fatigue_ratio: q = σ_R / σ_f, UTS over the fatigue limit [–], > 1 (1.6 or 2).
+        safety: C_s, the safety coefficient on the static limits [–], ≥ 1 (1.2).
+    """
+
+    core_uts: ArrayLike
+    surface_uts: ArrayLike
+    depth_drop: ArrayLike
+    fatigue_ratio: ArrayLike
+    safety: ArrayLike
+
+    def __post_init__(self) -> None:
+        check_positive(
+            **{"Material.core_uts": self.core_uts, "Material.surface_uts": self.surface_uts}
+        )
+        check_range("Material.depth_drop", self.depth_drop, 0.0, 1.0, high_open=True)
+        check_range("Material.fatigue_ratio", self.fatigue_ratio, 1.0, low_open=True)
+        check_range("Material.safety", self.safety, 1.0)
+        arrays = _concrete(self.core_uts, self.surface_uts, self.depth_drop)
+        if arrays is None:
+            return
+        core, surface, drop = np.broadcast_arrays(*arrays)
+        weak = surface * (1.0 - drop) < core
+        check(
+            "Material.surface_uts",
+            surface,
+            lambda a: ~weak,
+            f"surface_uts (1 − depth_drop) ≥ core_uts (= {_first(core, a=weak)} MPa)",
+        )
+
+
+@checked_pytree_dataclass
+class EventRate:
+    """The share of the revolutions that are fatigue events, p(ω), a line in log p (fig. 4.3.5).
+
+    p(ω) = p_low (p_high/p_low)^((ω − ω_low)/(ω_high − ω_low)) at the shaft speed ω
+    [rad/s], not clipped outside [ω_low, ω_high]. The workbook's line goes through
+    (10 rad/s, 5 %) and (250 rad/s, 0.2 %): log₁₀ p[%] = 0.75722 − 0.0058248 ω.
+
+    Attributes:
+        speed_low, speed_high: ω_low < ω_high [rad/s], > 0.
+        rate_low, rate_high: p at them [–], in (0, 1].
+    """
+
+    speed_low: ArrayLike = 10.0
+    rate_low: ArrayLike = 0.05
+    speed_high: ArrayLike = 250.0
+    rate_high: ArrayLike = 0.002
+
+    def __post_init__(self) -> None:
+        check_positive(
+            **{"EventRate.speed_low": self.speed_low, "EventRate.speed_high": self.speed_high}
+        )
+        for k in ("rate_low", "rate_high"):
+            check_range(f"EventRate.{k}", getattr(self, k), 0.0, 1.0, low_open=True)
+        arrays = _concrete(self.speed_low, self.speed_high)
+        if arrays is None:
+            return
+        low, high = np.broadcast_arrays(*arrays)
+        check(
+            "EventRate.speed_high",
+            high,
+            lambda a: a > low,
+            f"speed_high > speed_low (= {_first(low, a=high <= low)} rad/s)",
+        )
+
+    def __call__(self, omega: ArrayLike) -> jax.Array:
+        """p(ω) [–] at the shaft speed ω [rad/s]."""
+        low, high = jnp.asarray(self.speed_low), jnp.asarray(self.speed_high)
+        p_low, p_high = jnp.asarray(self.rate_low), jnp.asarray(self.rate_high)
+        x = (jnp.asarray(omega) - low) / (high - low)
+        return p_low * jnp.exp(x * jnp.log(p_high / p_low))
+
+
+def polar_moment(section: Section) -> jax.Array:
+    """J = π(Øe⁴ − Øi⁴)/32 [mm⁴]."""
+    outer, inner = jnp.asarray(section.outer_diameter), jnp.asarray(section.inner_diameter)
+    return math.pi * (outer**4 - inner**4) / 32.0
+
+
+def _valid(section, material):
+    """Elementwise: the section and material inside their domains (NaN elsewhere under ``jit``)."""
+    s, m = section, material
+    wall = (s.outer_diameter - s.inner_diameter) / 2.0
+    ok = (s.outer_diameter > 0) & (s.inner_diameter >= 0) & (wall > 0)
+    ok = ok & (s.hardened_depth >= 0) & (s.transition_depth >= 0)
+    ok = ok & (s.hardened_depth + s.transition_depth <= wall * (1.0 + 1e-6))
+    ok = ok & (m.core_uts > 0) & (m.depth_drop >= 0) & (m.depth_drop < 1)
+    ok = ok & (m.surface_uts * (1.0 - m.depth_drop) >= m.core_uts * (1.0 - 1e-6))
+    ok = ok & (m.fatigue_ratio > 1) & (m.safety >= 1)
+    finite = [jnp.isfinite(jnp.asarray(x)) for x in (*jax.tree.leaves(s), *jax.tree.leaves(m))]
+    for f in finite:
+        ok = ok & f
+    return ok
+
+
+def _kinks(section, material):
+    """The profile's kink radii (r_o, r_o − h, r_TR) and strengths there, each shape (..., 3)."""
+    s, m = section, material
+    r_o = jnp.asarray(s.outer_diameter) / 2.0
+    r_h = r_o - s.hardened_depth
+    r_tr = r_h - s.transition_depth
+    radius = jnp.stack(jnp.broadcast_arrays(r_o, r_h, r_tr), axis=-1)
+    surface = jnp.asarray(m.surface_uts)
+    uts = jnp.stack(
+        jnp.broadcast_arrays(surface, surface * (1.0 - m.depth_drop), m.core_uts), axis=-1
+    )
+    return radius, uts
+
+
+def strength_profile(section: Section, material: Material, radius: ArrayLike) -> jax.Array:
+    """σ_R(r) [MPa] at the radius r [mm] (0 ≤ r ≤ Øe/2): the piecewise-linear layer profile.
+
+    Linear from σ_R,s at the surface to (1 − Δ) σ_R,s at the depth h, then to σ_R,c
+    at h + t; σ_R,c below. Where h or t is 0 the profile steps there (the value
+    below the step). Differentiable in r and every field between the kinks.
+    """
+    check_instance("section", section, Section, "a shaft.Section")
+    check_instance("material", material, Material, "a shaft.Material")
+    check_non_negative("radius", radius, " mm")
+    s, m = section, material
+    depth = jnp.asarray(s.outer_diameter) / 2.0 - jnp.asarray(radius)
+    h, t = jnp.asarray(s.hardened_depth), jnp.asarray(s.transition_depth)
+    surface, core = jnp.asarray(m.surface_uts), jnp.asarray(m.core_uts)
+    at_h = surface * (1.0 - m.depth_drop)
+    in_layer = depth < h
+    in_transition = depth < h + t
+    layer = surface - (surface - at_h) * depth / jnp.where(in_layer, h, 1.0)
+    transition = at_h - (at_h - core) * (depth - h) / jnp.where(in_transition, t, 1.0)
+    uts = jnp.where(in_layer, layer, jnp.where(in_transition, transition, core))
+    ok = _valid(s, m) & (depth >= 0) & (depth <= s.outer_diameter / 2.0 - s.inner_diameter / 2.0)
+    return _nan_unless(ok, uts)
+
+
+@pytree_dataclass
+class StaticCheck:
+    """The static check of a section at the kinks of its strength profile (fig. 4.3.6).
+
+    The last axis is the radius (r_o, r_o − h, r_TR); a leading axis of the torque
+    (e.g. forward and backward) comes first.
+
+    Attributes:
+        radius: the kink radii [mm].
+        uts: σ_R there [MPa].
+        allowed_shear: τ_adm = σ_R / (C_s √3) [MPa].
+        shear: τ = T r / J under the torque [MPa].
+        safety: τ_adm / τ [–] at each radius; the section's is their minimum.
+        passed: every safety ≥ 1 (bool).
+    """
+
+    radius: jax.Array
+    uts: jax.Array
+    allowed_shear: jax.Array
+    shear: jax.Array
+    safety: jax.Array
+    passed: jax.Array
+
+
+def static_check(section: Section, material: Material, torque: ArrayLike) -> StaticCheck:
+    """Static safety of ``section`` under the torque T [N·m] (> 0) at every kink radius.
+
+    ``torque`` may be an array (e.g. ``[cycles.M_max_forward, cycles.M_max_backward]``):
+    the results then carry its shape before the radius axis. See the module docstring.
+    """
+    check_instance("section", section, Section, "a shaft.Section")
+    check_instance("material", material, Material, "a shaft.Material")
+    check_positive(torque=torque)
+    radius, uts = _kinks(section, material)
+    allowed = uts / (jnp.asarray(material.safety)[..., None] * SQRT3)
+    J = polar_moment(section)[..., None]
+    torque = jnp.asarray(torque)[..., None]
+    shear = 1000.0 * torque * radius / J
+    safety = allowed / shear
+    ok = _valid(section, material)[..., None] & jnp.isfinite(torque)
+    safety = _nan_unless(ok, safety)
+    return StaticCheck(
+        radius=radius,
+        uts=uts,
+        allowed_shear=allowed,
+        shear=_nan_unless(ok, shear),
+        safety=safety,
+        passed=jnp.all(safety >= 1.0, axis=-1),
+    )
+
+
+@pytree_dataclass
+class FatigueCycles:
+    """The fatigue rows of one halfshaft, shape (modes, gears + 1, 4) each (fig. 4.3.7).
+
+    The gear axis holds the forward gears then reverse; the last axis the engine
+    conditions (`tripodjax.vehicle.ENGINE_CONDITIONS`), the brake last.
+
+    Attributes:
+        torque: the row's torque, the load or the (signed) engine brake [N·m].
+        load: the cycle's upper torque [N·m].
+        brake: the cycle's lower torque, the signed engine brake [N·m].
+        speed: shaft speed ω [rad/s].
+        event_rate: p(ω) applied to the row's revolutions [–] (1 where the
+            workbook reading counts without it).
+        count: cycles n over the required mileage [–].
+    """
+
+    torque: jax.Array
+    load: jax.Array
+    brake: jax.Array
+    speed: jax.Array
+    event_rate: jax.Array
+    count: jax.Array
+
+
+def fatigue_cycles(
+    cycles: LoadCycles,
+    modes: DrivingModes,
+    event_rate: EventRate | None = None,
+    *,
+    reading: str = "consistent",
+) -> FatigueCycles:
+    """The load → engine-brake cycles of fig. 4.3.7 from the vehicle's load cycles.
+
+    ``cycles`` from [`load_cycles`][tripodjax.vehicle.load_cycles] of the same
+    ``modes``; ``event_rate`` the p(ω) line (default the workbook's);
+    ``reading`` ``"consistent"`` or ``"workbook"`` (see the module docstring).
+    Differentiable in every number of the inputs; vmap over them.
+    """
+    check_instance("cycles", cycles, LoadCycles, "a vehicle.LoadCycles")
+    check_instance("modes", modes, DrivingModes, "a vehicle.DrivingModes")
+    event_rate = EventRate() if event_rate is None else event_rate
+    check_instance("event_rate", event_rate, EventRate, "a shaft.EventRate")
+    check_choice("reading", reading, READINGS)
+    use = jnp.asarray(modes.use)
+    weight = jnp.asarray(modes.weight)
+    if use.shape != cycles.working_torque.shape:
+        raise ValueError(
+            f"modes.use has shape {use.shape}; the cycles have {cycles.working_torque.shape}: "
+            "build the cycles from the same modes"
+        )
+    drive = jnp.sum(use[..., :3], axis=-1)  # (M, G+1)
+    drive_total = jnp.sum(drive, axis=-1, keepdims=True)
+    unclaimed = 1.0 - jnp.sum(use, axis=(-2, -1))[..., None]
+    spread = jnp.where(drive_total > 0, unclaimed / jnp.where(drive_total > 0, drive_total, 1.0), 0)
+    row_use = jnp.concatenate([use[..., :3], (use[..., 3] + drive * spread)[..., None]], axis=-1)
+    speed = cycles.shaft_speed * RPM_TO_RAD_S
+    rate = event_rate(speed)
+    n_gears = use.shape[-2]
+    first = (jnp.arange(n_gears) == 0)[:, None] & (jnp.arange(4) == 3)[None, :]
+    if reading == "workbook":
+        rate = jnp.where(first, 1.0, rate)
+    sign = jnp.where(jnp.arange(n_gears) == 0, -1.0, 1.0)  # the sheet's: a reversal in 1st only
+    count = weight[:, None, None] * cycles.total_revolutions * row_use * rate
+    brake_torque = sign * cycles.working_torque[..., 3] / cycles.shock_factor  # (M, G+1)
+    load = jnp.concatenate([cycles.working_torque[..., :3], cycles.working_torque[..., 1:2]], -1)
+    brake = jnp.broadcast_to(brake_torque[..., None], load.shape)
+    is_brake = jnp.arange(4) == 3
+    return FatigueCycles(
+        torque=jnp.where(is_brake, brake, load),
+        load=load,
+        brake=brake,
+        speed=speed,
+        event_rate=rate,
+        count=count,
+    )
+
+
+@pytree_dataclass
+class FatigueCheck:
+    """The fatigue check of a section at r_o and r_TR (fig. 4.3.7).
+
+    The first axis is the radius (outer, end of the transformed layer); per-row
+    fields then have the rows' shape (modes, gears + 1, 4).
+
+    Attributes:
+        radius: r_o and r_TR [mm].
+        uts: σ_R there [MPa] (per the reading at r_TR).
+        fatigue_limit: σ_f = σ_R / q [MPa].
+        shear: τ = T r / J of the row's torque [MPa].
+        stress: σ = √3 τ [MPa].
+        mean, amplitude: σ_m, σ_a of the row's cycle [MPa].
+        ratio: r = σ_a / σ_m [–].
+        allowed_amplitude: σ_lim, Goodman on the constant-ratio line at 10⁶ cycles [MPa].
+        cycles_to_failure: N [–].
+        damage_per_row: n / N [–].
+        damage: Miner's sum Σ n/N per radius [–].
+        passed: damage < 1 at both radii (bool).
+    """
+
+    radius: jax.Array
+    uts: jax.Array
+    fatigue_limit: jax.Array
+    shear: jax.Array
+    stress: jax.Array
+    mean: jax.Array
+    amplitude: jax.Array
+    ratio: jax.Array
+    allowed_amplitude: jax.Array
+    cycles_to_failure: jax.Array
+    damage_per_row: jax.Array
+    damage: jax.Array
+    passed: jax.Array
+
+
+def fatigue_check(
+    section: Section, material: Material, rows: FatigueCycles, *, reading: str = "consistent"
+) -> FatigueCheck:
+    """Goodman, the semi-log S–N line and Miner's sum of ``section`` under ``rows``.
+
+    ``rows`` from [`fatigue_cycles`][tripodjax.shaft.fatigue_cycles]; ``reading``
+    sets σ_R at r_TR (see the module docstring). Scalar section and material
+    fields (``vmap`` over sections); differentiable in every number.
+    """
+    check_instance("section", section, Section, "a shaft.Section")
+    check_instance("material", material, Material, "a shaft.Material")
+    check_instance("rows", rows, FatigueCycles, "a shaft.FatigueCycles")
+    check_choice("reading", reading, READINGS)
+    s, m = section, material
+    if any(jnp.ndim(x) for x in (*jax.tree.leaves(s), *jax.tree.leaves(m))):
+        raise ValueError(
+            "fatigue_check takes one section and one material (scalar fields); vmap over several"
+        )
+    r_o = jnp.asarray(s.outer_diameter) / 2.0
+    r_tr = r_o - s.hardened_depth - s.transition_depth
+    core = jnp.asarray(m.core_uts) * (1.0 + m.depth_drop if reading == "workbook" else 1.0)
+    radius = jnp.stack(jnp.broadcast_arrays(r_o, r_tr))
+    uts = jnp.stack(jnp.broadcast_arrays(jnp.asarray(m.surface_uts, core.dtype), core))
+    fatigue_limit = uts / m.fatigue_ratio
+    per_mm = 1000.0 * SQRT3 * radius / polar_moment(s)  # σ per N·m at each radius
+
+    def at(x):
+        return x[:, None, None, None]
+
+    stress = at(per_mm) * rows.torque
+    upper, lower = at(per_mm) * rows.load, at(per_mm) * rows.brake
+    mean, amplitude = (upper + lower) / 2.0, (upper - lower) / 2.0
+    sigma_R, sigma_f = at(uts), at(fatigue_limit)
+    allowed = sigma_f * sigma_R * amplitude / (sigma_R * amplitude + sigma_f * jnp.abs(mean))
+    log_n = 3.0 + 3.0 * (sigma_R - amplitude) / (sigma_R - allowed)
+    n_fail = jnp.power(10.0, log_n)
+    per_row = rows.count / n_fail
+    damage = jnp.sum(per_row, axis=(1, 2, 3))
+    ok = _valid(s, m)
+    damage = _nan_unless(ok, damage)
+    return FatigueCheck(
+        radius=radius,
+        uts=uts,
+        fatigue_limit=fatigue_limit,
+        shear=stress / SQRT3,
+        stress=stress,
+        mean=mean,
+        amplitude=amplitude,
+        ratio=amplitude / mean,
+        allowed_amplitude=_nan_unless(ok, allowed),
+        cycles_to_failure=_nan_unless(ok, n_fail),
+        damage_per_row=_nan_unless(ok, per_row),
+        damage=damage,
+        passed=jnp.all(damage < 1.0),
+    )
