@@ -13,6 +13,8 @@ only at the user-facing edge). Physics layers, after the seed thesis:
 - [`tripodjax.hertz`][tripodjax.hertz]: Hertz contact, torque capacities, minimum size (§4.2).
 - [`tripodjax.life`][tripodjax.life]: load spectrum, working conditions, angle derating, Miner's rule (§4.2).
 - [`tripodjax.vehicle`][tripodjax.vehicle]: the customer's vehicle → the joint's load cycles (§4.3).
+- [`tripodjax.shaft`][tripodjax.shaft]: the shaft's sections and stems, statically and in fatigue (§4.3).
+- [`tripodjax.outboard`][tripodjax.outboard]: the outboard fixed ball joint's capacities and life (§4.3).
 - [`tripodjax.catalogue`][tripodjax.catalogue]: GE and GI catalogue sizes (§1.1.2).
 - [`tripodjax.solvers`][tripodjax.solvers]: solver options (`Newton`, `Analytic`, `ClosedForm`).
 - [`tripodjax.results`][tripodjax.results]: the `RESULTS` codes carried from the Newton point to every result.
@@ -61,14 +63,27 @@ _SUBMODULES = (
     "layout",
     "life",
     "motion",
+    "outboard",
     "progress",
     "results",
+    "shaft",
     "solvers",
     "vehicle",
 )
 
 if typing.TYPE_CHECKING:  # what the lazy attributes are, for type checkers and the docs
-    from tripodjax import catalogue, friction, hertz, joint, life, progress, solvers, vehicle
+    from tripodjax import (
+        catalogue,
+        friction,
+        hertz,
+        joint,
+        life,
+        outboard,
+        progress,
+        shaft,
+        solvers,
+        vehicle,
+    )
     from tripodjax.friction import GAFInputs
     from tripodjax.halfshaft import HalfshaftSolution, solve_halfshaft
     from tripodjax.kinematics import KinematicMetrics, kinematic_metrics
@@ -135,6 +150,8 @@ __all__ = [
     "hertz",
     "joint",
     "life",
+    "outboard",
+    "shaft",
     "kinematic_metrics",
     "map_chunks",
     "seed_case",

@@ -259,7 +259,8 @@ class ContactGeometry:
 
     Attributes:
         chi_q: transverse conformity χ_q = −1/Ψ [–].
-        chi_l: longitudinal conformity χ_l = 0 (straight tracks) [–].
+        chi_l: longitudinal conformity χ_l [–]: 0 for straight tracks (a tripod), d/(2ρ_l)
+            for a track of longitudinal radius ρ_l (> 0 convex, < 0 concave; a ball joint).
         d_sum_rho: Hertz factor dΣρ = 2(2 + χ_q + χ_l) [–] (curvature sum × d).
         cos_tau: curvature function |χ_q − χ_l| / (2 + χ_q + χ_l) [–].
     """
@@ -270,8 +271,13 @@ class ContactGeometry:
     cos_tau: jax.Array
 
 
-def contact_geometry(conformity: ArrayLike) -> ContactGeometry:
-    """Contact geometry of a roller in a straight track of conformity Ψ = 2 R_g / d.
+def contact_geometry(
+    conformity: ArrayLike, longitudinal_conformity: ArrayLike = 0.0
+) -> ContactGeometry:
+    """Contact geometry of a roller or ball in a track of conformity Ψ = 2 R_g / d.
+
+    ``longitudinal_conformity`` χ_l in (−1, 1]: 0 (the default) for a straight
+    track; a ball joint's curved track has χ_l ≠ 0 (fig. 4.3.10: 0.268).
 
     Ψ ≥ `MIN_CONFORMITY` = 1.0005 (Ψ − 1 ≥ 5·10⁻⁴; the workbook's
     experience range is 1.002–1.008; see
@@ -280,10 +286,11 @@ def contact_geometry(conformity: ArrayLike) -> ContactGeometry:
     Ψ ≤ 1 gives NaN.
     """
     check_conformity(conformity)
+    _check_longitudinal(longitudinal_conformity)
     conformity = jnp.asarray(conformity, jnp.result_type(conformity, 0.0))
     conformity = _nan_unless(jnp.isfinite(conformity) & (conformity > 1), conformity)
     chi_q = -1.0 / conformity
-    chi_l = jnp.zeros_like(chi_q)
+    chi_l = jnp.broadcast_to(jnp.asarray(longitudinal_conformity, chi_q.dtype), chi_q.shape)
     denominator = 2.0 + chi_q + chi_l
     return ContactGeometry(
         chi_q=chi_q,
@@ -293,9 +300,13 @@ def contact_geometry(conformity: ArrayLike) -> ContactGeometry:
     )
 
 
-def _conformity_coefficient(conformity):
-    """(C_p, μν, κ-solve code) from a checked conformity."""
-    geometry = contact_geometry(conformity)
+def _check_longitudinal(value):
+    check_range("longitudinal_conformity", value, -1.0, 1.0, low_open=True)
+
+
+def _conformity_coefficient(conformity, longitudinal_conformity=0.0):
+    """(C_p, μν, κ-solve code) from a checked conformity (and longitudinal conformity χ_l)."""
+    geometry = contact_geometry(conformity, longitudinal_conformity)
     coefficients = _hertz_coefficients(geometry.cos_tau)
     C_p = HERTZ_STEEL / coefficients.mu_nu * geometry.d_sum_rho ** (2.0 / 3.0)
     return C_p, coefficients.mu_nu, coefficients.result
@@ -463,6 +474,7 @@ def capacities(
     pressure_angle: ArrayLike = math.pi / 2,
     helix_angle: ArrayLike = 0.0,
     gamma: ArrayLike = 0.0,
+    longitudinal_conformity: ArrayLike = 0.0,
 ) -> Capacities:
     """Static and dynamic torque capacities of a joint with roller diameter d and PCR R [mm].
 
@@ -476,6 +488,8 @@ def capacities(
         n_rollers: an integer ≥ 1, 3 for a tripod; pressure_angle ε in
             (0, π/2] [rad] (π/2 for a tripod); helix_angle ζ in [0, π/2)
             [rad] (0); gamma: working angle in [0, π/2) [rad] for M_d and M_sd.
+        longitudinal_conformity: χ_l in (−1, 1] (0 for straight tracks; see
+            [`contact_geometry`][tripodjax.hertz.contact_geometry]).
 
     Every value finite; concrete values are checked (``ValueError`` /
     ``TypeError`` naming the argument). Inside ``jit`` a non-finite input
@@ -486,7 +500,7 @@ def capacities(
     check_conformity(conformity)
     _check_n_rollers(n_rollers)
     _check_angles(pressure_angle, helix_angle, gamma)
-    C_p, product, kappa_code = _conformity_coefficient(conformity)
+    C_p, product, kappa_code = _conformity_coefficient(conformity, longitudinal_conformity)
     common = (C_p, C_s, n_rollers, pressure_angle, helix_angle)
     M_s = _torque_at_pressure(P_s, d, R, *common, 0.0)
     M_d = _torque_at_pressure(P_d, d, R, *common, gamma)
@@ -516,6 +530,7 @@ def min_roller_diameter(
     pressure_angle: ArrayLike = math.pi / 2,
     helix_angle: ArrayLike = 0.0,
     rule: str = "consistent",
+    longitudinal_conformity: ArrayLike = 0.0,
 ) -> tuple[jax.Array, jax.Array]:
     """Smallest roller diameter and pitch-circle radius [mm] for a maximum torque M_max [N·m].
 
@@ -528,7 +543,8 @@ def min_roller_diameter(
     (pressure to the power 2 where Hertz gives 3); kept for reproduction only.
 
     Args: M_max, R_over_d, P_s, C_s > 0; conformity Ψ ≥ 1.0005; n_rollers an
-    integer ≥ 1; angles as [`capacities`][tripodjax.hertz.capacities]; all finite (NaN inside ``jit``
+    integer ≥ 1; angles and longitudinal_conformity as
+    [`capacities`][tripodjax.hertz.capacities]; all finite (NaN inside ``jit``
     for a non-finite input).
 
     Returns:
@@ -539,7 +555,7 @@ def min_roller_diameter(
     check_conformity(conformity)
     _check_n_rollers(n_rollers)
     _check_angles(pressure_angle, helix_angle)
-    C_p = _conformity_coefficient(conformity)[0]
+    C_p = _conformity_coefficient(conformity, longitudinal_conformity)[0]
     geometry_factor = n_rollers * R_over_d * jnp.sin(pressure_angle) * jnp.cos(helix_angle)
     torque_nmm = 1000.0 * M_max
     if rule == "consistent":

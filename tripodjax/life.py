@@ -260,6 +260,7 @@ def joint_life(
     pressure_angle: ArrayLike = math.pi / 2,
     helix_angle: ArrayLike = 0.0,
     angle_law: str = "workbook",
+    longitudinal_conformity: ArrayLike = 0.0,
 ) -> Life:
     """Palmgren–Miner life of a joint in hours and km (4.2.1–4.2.3).
 
@@ -273,7 +274,8 @@ def joint_life(
     [`LoadSpectrum`][tripodjax.life.LoadSpectrum]; ``conditions`` a
     [`WorkingConditions`][tripodjax.life.WorkingConditions]; conformity Ψ ≥ 1.0005;
     P_d > 0 [MPa]; C_s > 0; n_rollers an integer ≥ 1; angles as
-    [`capacities`][tripodjax.hertz.capacities]; ``angle_law`` ``"workbook"`` or
+    [`capacities`][tripodjax.hertz.capacities], as is ``longitudinal_conformity``
+    (0 for straight tracks; a ball joint's curved tracks); ``angle_law`` ``"workbook"`` or
     ``"seed"``. Inside ``jit`` a non-finite input gives a NaN life and
     ``result = nonfinite``. Differentiable w.r.t. d, R, the conformity, P_d and
     every spectrum and condition number.
@@ -293,7 +295,7 @@ def joint_life(
     check_conformity(conformity)
     _check_n_rollers(n_rollers)
     _check_angles(pressure_angle, helix_angle)
-    C_p, _, kappa_code = _conformity_coefficient(conformity)
+    C_p, _, kappa_code = _conformity_coefficient(conformity, longitudinal_conformity)
     M_d = _torque_at_pressure(P_d, d, R, C_p, C_s, n_rollers, pressure_angle, helix_angle, 0.0)
     rate0, terms = _damage_rate(M_d, spectrum.torque, spectrum.speed, spectrum.share)
     angle, w = jnp.asarray(conditions.angle), jnp.asarray(conditions.share)

@@ -1,0 +1,245 @@
+"""The outboard fixed ball joint ("Fixed FR", seed fig. 4.3.10, second column).
+
+The workbook sizes and gives a life to both joints of a halfshaft by one
+method (seed §4.2, §4.3 sheet 8): this module runs the tripod's contact model of
+[`tripodjax.hertz`][tripodjax.hertz] and [`tripodjax.life`][tripodjax.life]
+with a ball joint's numbers — n balls (6), the pressure angle ε = 45° (the
+workbook: "only 45"), the transverse conformity Ψ = 2 R_g/d and the
+longitudinal conformity χ_l of its curved tracks (Hertz's dΣρ = 2(2 + χ_q + χ_l),
+cos τ = |χ_q − χ_l|/(2 + χ_q + χ_l) with χ_q = −1/Ψ), its allowed pressures P_s,
+P_d, P_sd and safety coefficient C_s:
+
+    M(p) = ½(1 + cos γ) n (p / (C_s C_p))³ d² R sin ε cos ζ,
+
+ζ the track's oblique angle (YZ; the tripod's helix angle, 0 in the workbook).
+The track inclination in XZ (0 in the workbook, "it can vary") is not modelled:
+the seed prints no relation for it.
+
+The life at 0° from the load spectrum (4.2.1–4.2.3) is multiplied by 1 + tol,
+the workbook's "tolerance on calculation spread" (15 %: 1547 h → 1779 h); the
+working conditions derate it by the same angle law as the tripod's and combine
+by Miner's rule on their mileage shares.
+
+Decoded from fig. 4.3.10 (second column): n = 6 (the digit is illegible; 6
+gives the printed capacities), P_s = 3750, P_d = 2150, P_sd = 3200 MPa,
+C_s = 1.1 on the capacities (1.35 on the suggested size), Ψ = 1.003 (χ_q =
+−0.997), χ_l = 0.268, dΣρ = 2.543, μν = 2.540, C_p = 629, PCR/d = 1.65;
+d = 18.256 mm, PCR = 29.958 mm → M_s = 6734, M_d = 1269, M_sd = 4183 N·m; static
+safety 5.833 forward (M_s / 1154 N·m). Life: 1547 h at 0°, 1779 h with the
+tolerance, 202 617 km; static trim 6.0° (the angle is illegible; the workbook
+law gives 6.0° from its 140 772 km), shock + 8.0° (as the tripod's), shock −
+10.5° (100 128 km); shares 30 / 0 / 0 / 35 / 35 %; combined 117 671 km.
+
+The sheet's 1547 h is not the tripod's 2148 h scaled by (M_d/M_d,tripod)³
+(that gives 1282 h, 17 % less): the sheet's rating for a ball joint is not
+printed. Here one rating (500 h at 730 rpm) serves both joints.
+"""
+
+import dataclasses
+import math
+
+import jax
+import jax.numpy as jnp
+from jax.typing import ArrayLike
+
+from tripodjax import hertz, life
+from tripodjax._checks import (
+    check_choice,
+    check_conformity,
+    check_instance,
+    check_non_negative,
+    check_positive,
+    check_range,
+    checked_pytree_dataclass,
+)
+
+__all__ = [
+    "READINGS",
+    "FixedJoint",
+    "capacities",
+    "joint_life",
+    "min_ball_diameter",
+    "static_safety",
+]
+
+
+@checked_pytree_dataclass
+class FixedJoint:
+    """A fixed ball joint's contact geometry, allowed pressures and safety (fig. 4.3.10).
+
+    Attributes:
+        d: ball diameter [mm], > 0.
+        R: pitch-centre radius PCR [mm], > 0.
+        conformity: transverse conformity Ψ = 2 R_g/d [–], ≥ 1.0005 (workbook 1.003–1.005).
+        longitudinal_conformity: χ_l [–] in (−1, 1] (workbook 0.268).
+        P_s, P_d, P_sd: allowed static, long-lasting and short-lasting dynamic
+            pressures [MPa], > 0.
+        C_s: safety coefficient on the pressure [–], > 0 (workbook 1.1).
+        pressure_angle: ε [rad] in (0, π/2] (π/4, the workbook's 45°).
+        oblique_angle: the tracks' oblique angle ζ (YZ) [rad] in [0, π/2) (0).
+        tolerance: the tolerance on the life's calculation spread [–], ≥ 0 (0.15).
+    """
+
+    d: ArrayLike
+    R: ArrayLike
+    conformity: ArrayLike
+    longitudinal_conformity: ArrayLike
+    P_s: ArrayLike
+    P_d: ArrayLike
+    P_sd: ArrayLike
+    C_s: ArrayLike
+    pressure_angle: ArrayLike = math.pi / 4
+    oblique_angle: ArrayLike = 0.0
+    tolerance: ArrayLike = 0.15
+
+    def __post_init__(self) -> None:
+        check_positive(**{f"FixedJoint.{k}": getattr(self, k) for k in _POSITIVE})
+        check_conformity(self.conformity, "FixedJoint.conformity")
+        check_range(
+            "FixedJoint.longitudinal_conformity",
+            self.longitudinal_conformity,
+            -1.0,
+            1.0,
+            low_open=True,
+        )
+        check_range(
+            "FixedJoint.pressure_angle",
+            self.pressure_angle,
+            0.0,
+            math.pi / 2,
+            low_open=True,
+            unit=" rad",
+        )
+        check_range(
+            "FixedJoint.oblique_angle",
+            self.oblique_angle,
+            0.0,
+            math.pi / 2,
+            high_open=True,
+            unit=" rad",
+        )
+        check_non_negative("FixedJoint.tolerance", self.tolerance)
+
+
+READINGS = ("consistent", "workbook")
+_POSITIVE = ("d", "R", "P_s", "P_d", "P_sd", "C_s")
+
+
+def _common(joint, n_balls):
+    return dict(
+        conformity=joint.conformity,
+        longitudinal_conformity=joint.longitudinal_conformity,
+        C_s=joint.C_s,
+        n_rollers=n_balls,
+        pressure_angle=joint.pressure_angle,
+        helix_angle=joint.oblique_angle,
+    )
+
+
+def _table_factor(joint, reading):
+    """M_workbook / M_exact = (μν at cos τ truncated to 10⁻³ / exact μν)³ (1 when consistent)."""
+    check_choice("reading", reading, READINGS)
+    if reading == "consistent":
+        return 1.0
+    cos_tau = hertz.contact_geometry(joint.conformity, joint.longitudinal_conformity).cos_tau
+    table = hertz.mu_nu(jnp.floor(1000.0 * cos_tau) / 1000.0)
+    return (table / hertz.mu_nu(cos_tau)) ** 3
+
+
+def capacities(
+    joint: FixedJoint, *, n_balls: int = 6, gamma: ArrayLike = 0.0, reading: str = "consistent"
+) -> hertz.Capacities:
+    """M_s, M_d, M_sd [N·m] of the joint ([`hertz.capacities`][tripodjax.hertz.capacities]).
+
+    ``n_balls`` an integer ≥ 1; ``gamma`` the working angle [rad] for M_d and
+    M_sd; ``reading`` ``"consistent"`` (exact Hertz μν) or ``"workbook"`` (μν
+    at cos τ truncated to 10⁻³, the book table's step: the sheet's 2.540 and
+    2.650; see the module docstring).
+    """
+    check_instance("joint", joint, FixedJoint, "an outboard.FixedJoint")
+    factor = _table_factor(joint, reading)
+    exact = hertz.capacities(
+        joint.d,
+        joint.R,
+        P_s=joint.P_s,
+        P_d=joint.P_d,
+        P_sd=joint.P_sd,
+        gamma=gamma,
+        **_common(joint, n_balls),
+    )
+    return dataclasses.replace(
+        exact,
+        M_s=exact.M_s * factor,
+        M_d=exact.M_d * factor,
+        M_sd=exact.M_sd * factor,
+        C_p=exact.C_p / factor ** (1.0 / 3.0),
+        mu_nu=exact.mu_nu * factor ** (1.0 / 3.0),
+    )
+
+
+def static_safety(
+    joint: FixedJoint, M_max: ArrayLike, *, n_balls: int = 6, reading: str = "consistent"
+) -> jax.Array:
+    """S_o = M_s / M_max [–] for the largest working torque M_max [N·m] (> 0), forward or backward."""
+    check_positive(M_max=M_max)
+    return capacities(joint, n_balls=n_balls, reading=reading).M_s / jnp.asarray(M_max)
+
+
+def min_ball_diameter(
+    joint: FixedJoint,
+    M_max: ArrayLike,
+    *,
+    R_over_d: ArrayLike,
+    C_s: ArrayLike,
+    n_balls: int = 6,
+    reading: str = "consistent",
+) -> tuple[jax.Array, jax.Array]:
+    """Suggested smallest ball diameter and PCR [mm] for M_max [N·m] (Hertz's cube law).
+
+    [`hertz.min_roller_diameter`][tripodjax.hertz.min_roller_diameter] with
+    ``rule="consistent"`` and the joint's P_s and contact geometry; ``C_s`` the
+    sizing safety coefficient (the workbook's 1.35), ``R_over_d`` the PCR/d
+    (1.65); ``reading`` as [`capacities`][tripodjax.outboard.capacities].
+    With the workbook reading it gives the sheet's 12.424 and 20.499 mm within 0.2 %.
+    """
+    check_instance("joint", joint, FixedJoint, "an outboard.FixedJoint")
+    common = {**_common(joint, n_balls), "C_s": C_s}
+    scale = _table_factor(joint, reading) ** (-1.0 / 3.0)  # d_min ∝ C_p ∝ 1/μν
+    d_min, R_min = hertz.min_roller_diameter(M_max, R_over_d=R_over_d, P_s=joint.P_s, **common)
+    return d_min * scale, R_min * scale
+
+
+def joint_life(
+    joint: FixedJoint,
+    spectrum: life.LoadSpectrum,
+    conditions: life.WorkingConditions,
+    *,
+    n_balls: int = 6,
+    angle_law: str = "workbook",
+    reading: str = "consistent",
+) -> life.Life:
+    """The joint's life (hours and km), ×(1 + tol), under the spectrum and its working conditions.
+
+    [`life.joint_life`][tripodjax.life.joint_life] with the joint's numbers;
+    every life (combined and per condition) is multiplied by 1 + tolerance
+    (and, with ``reading="workbook"``, by the table's (M_d/M_d,exact)³).
+    """
+    check_instance("joint", joint, FixedJoint, "an outboard.FixedJoint")
+    table = _table_factor(joint, reading)
+    out = life.joint_life(
+        joint.d,
+        joint.R,
+        spectrum,
+        conditions,
+        P_d=joint.P_d,
+        angle_law=angle_law,
+        **_common(joint, n_balls),
+    )
+    factor = (1.0 + jnp.asarray(joint.tolerance)) * table**3
+    return dataclasses.replace(
+        out,
+        hours=out.hours * factor,
+        km=out.km * factor,
+        hours_per_condition=out.hours_per_condition * factor,
+        km_per_condition=out.km_per_condition * factor,
+    )
