@@ -1,0 +1,349 @@
+"""The shaft's sections against the workbook's fatigue sheet (seed fig. 4.3.7) and by hand.
+
+Expected numbers are the sheet's printed ones (the outboard joint's stem, "OCVJ stem":
+Øe 30.685 mm, h 2.5 mm, t 3.5 mm, core 690 MPa, surface 2180 MPa, −10 % at h, q 1.6),
+computed from the vehicle inputs alone (tests/test_vehicle.py's workbook vehicle).
+"""
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from test_vehicle import workbook_modes, workbook_vehicle
+
+from tripodjax import shaft, vehicle
+
+STEM = dict(outer_diameter=30.685, hardened_depth=2.5, transition_depth=3.5)
+MATERIAL = dict(core_uts=690.0, surface_uts=2180.0, depth_drop=0.10, fatigue_ratio=1.6, safety=1.2)
+
+# Fig. 4.3.7 per gear (1st–6th, reverse), intercity/city rows: load torque [N·m], at the outer
+# radius τ, σ of the load, σ_m, σ_a, σ_lim, N [10⁶]; at r_TR τ, σ, σ_m, σ_a, σ_lim, N [10⁶].
+SHEET_LOAD = [1154, 1103, 1051, 1026, 1009, 998, 750]
+SHEET_OUTER = [
+    (203, 352, 76, 276, 1162.67, 411),
+    (195, 337, 229, 108, 585.71, 8),
+    (185, 321, 201, 119, 663.43, 12),
+    (181, 313, 189, 125, 700.62, 15),
+    (178, 308, 180, 129, 727.62, 17),
+    (176, 305, 174, 131, 745.39, 19),
+    (132, 229, 218, 11, 99.61, 1),
+]
+SHEET_INNER = [
+    (124, 215, 46, 168, 404.80, 101),
+    (118, 205, 139, 66, 203.92, 6),
+    (113, 195, 123, 73, 230.98, 8),
+    (110, 191, 115, 76, 243.93, 10),
+    (108, 188, 109, 78, 253.33, 11),
+    (107, 186, 106, 80, 259.52, 12),
+    (80, 139, 133, 7, 34.68, 1),
+]
+# Engine-brake rows: torque (signed as printed) and σ at both radii.
+SHEET_BRAKE = [
+    (-656, -200, -122),
+    (397, 121, 74),
+    (268, 82, 50),
+    (209, 64, 39),
+    (167, 51, 31),
+    (139, 43, 26),
+    (679, 207, 126),
+]
+# Legible cycle counts [thousands] as (mode, gear, condition, count): modes sport 0,
+# intercity 1, city 2; conditions T_max 1, P_max 2, brake 3. Left out, with the reason:
+# the sport brake rows of gears 1–6 (all 2.1 % below the rule: the sheet's sport use
+# sums to 73.49 %, the table as read to 73.08 %), the 1st and 2nd gears' P_max rows
+# (0.14 and 1.23 % are rounded: 1.8 % and 0.4 % off), 5th gear city brake (reads
+# 20.375 for 20.7) and reverse's "3,329" brake row (misplaced).
+SHEET_COUNTS = [
+    (1, 0, 1, 3.465),
+    (2, 0, 1, 13.858),
+    (1, 0, 3, 33.513),
+    (2, 0, 3, 134.050),
+    (0, 1, 1, 39.548),
+    (1, 1, 1, 7.910),
+    (2, 1, 3, 14.805),
+    (0, 2, 1, 74.178),
+    (1, 2, 1, 14.836),
+    (2, 2, 1, 59.343),
+    (0, 2, 2, 15.775),
+    (2, 2, 2, 12.620),
+    (1, 2, 3, 7.707),
+    (2, 2, 3, 30.830),
+    (0, 3, 1, 64.361),
+    (1, 3, 1, 12.872),
+    (0, 3, 2, 16.983),
+    (1, 3, 2, 3.397),
+    (2, 3, 2, 13.587),
+    (1, 3, 3, 7.646),
+    (2, 3, 3, 30.585),
+    (0, 4, 1, 40.140),
+    (1, 4, 1, 8.028),
+    (2, 4, 1, 32.112),
+    (1, 4, 2, 2.102),
+    (2, 4, 2, 8.407),
+    (1, 5, 1, 4.587),
+    (2, 5, 1, 18.349),
+    (0, 5, 2, 6.042),
+    (2, 5, 2, 4.834),
+    (1, 5, 3, 3.262),
+    (2, 5, 3, 13.047),
+    (0, 6, 1, 4.337),
+    (1, 6, 1, 0.867),
+    (0, 6, 2, 0.419),
+    (1, 6, 2, 0.084),
+    (2, 6, 2, 0.335),
+    (2, 6, 3, 1.439),
+]
+SHEET_DAMAGE = (0.0835, 0.122)
+
+
+@pytest.fixture(scope="module")
+def chain():
+    modes = workbook_modes()
+    cycles = vehicle.load_cycles(workbook_vehicle(), modes, 100_000.0)
+    return cycles, modes
+
+
+@pytest.fixture(scope="module")
+def sheet(chain):
+    rows = shaft.fatigue_cycles(*chain, reading="workbook")
+    check = shaft.fatigue_check(
+        shaft.Section(**STEM), shaft.Material(**MATERIAL), rows, reading="workbook"
+    )
+    return rows, check
+
+
+def test_geometry_and_strengths_of_the_stem():
+    section = shaft.Section(**STEM)
+    assert float(shaft.polar_moment(section)) == pytest.approx(87_037.0, rel=1e-4)
+    material = shaft.Material(**MATERIAL)
+    radius = np.array([15.3425, 12.8425, 9.3425])
+    np.testing.assert_allclose(
+        shaft.strength_profile(section, material, radius), [2180, 1962, 690], rtol=1e-3
+    )
+    # Linear in between: the middle of the transition.
+    mid = float(shaft.strength_profile(section, material, 15.3425 - 2.5 - 1.75))
+    assert mid == pytest.approx((1962 + 690) / 2, rel=1e-9)
+    # Sheet 5's static limits: 2180/1.2 = 1817 normal, 1049 shear; the core's 575 and 332.
+    static = shaft.static_check(section, material, 1154.0)
+    np.testing.assert_allclose(np.asarray(static.allowed_shear)[[0, 2]], [1049, 332], atol=0.6)
+
+
+def test_fig_4_3_7_stresses_goodman_and_cycles_to_failure(sheet):
+    rows, check = sheet
+    assert np.asarray(check.radius) == pytest.approx([15.343, 9.343], abs=1e-3)
+    np.testing.assert_allclose(check.uts, [2180, 759], rtol=1e-9)
+    np.testing.assert_allclose(check.fatigue_limit, [1363, 474], atol=0.7)
+    city = 2  # the sport rows of 2nd gear take 1154 N·m in the sheet (see the module docstring)
+    for g in range(7):
+        assert float(rows.load[city, g, 1]) == pytest.approx(SHEET_LOAD[g], abs=1.0), g
+        torque, s_outer, s_inner = SHEET_BRAKE[g]
+        assert float(rows.brake[city, g, 3]) == pytest.approx(torque, abs=1.0), g
+        for k, printed in enumerate((SHEET_OUTER[g], SHEET_INNER[g])):
+            tau, sigma, mean, amp, allowed, n_fail = printed
+            assert float(check.shear[k, city, g, 1]) == pytest.approx(tau, abs=0.6), (g, k)
+            assert float(check.stress[k, city, g, 1]) == pytest.approx(sigma, abs=0.6), (g, k)
+            assert float(check.stress[k, city, g, 3]) == pytest.approx(
+                (s_outer, s_inner)[k], abs=0.6
+            )
+            assert float(check.mean[k, city, g, 1]) == pytest.approx(mean, abs=0.6), (g, k)
+            assert float(check.amplitude[k, city, g, 1]) == pytest.approx(amp, abs=0.6), (g, k)
+            # Every row of the gear shares the cycle (the brake rows too).
+            assert float(check.amplitude[k, city, g, 3]) == pytest.approx(amp, abs=0.6)
+            # σ_lim within 0.05 % (reverse 0.35 %: a small amplitude from 750 − 679 N·m).
+            rel = 3.5e-3 if g == 6 else 5e-4
+            assert float(check.allowed_amplitude[k, city, g, 1]) == pytest.approx(allowed, rel=rel)
+            assert float(check.cycles_to_failure[k, city, g, 1]) / 1e6 == pytest.approx(
+                n_fail,
+                rel=6e-3,
+                abs=0.5,  # rounded to 10⁶; 409.9 for 411, 100.5 for 101
+            ), (g, k)
+    assert round(float(check.ratio[0, city, 0, 1])) == 4  # the sheet's "Ratio" column
+    assert round(float(check.ratio[0, city, 1, 1])) == 0
+
+
+def test_fig_4_3_7_cycle_counts(sheet):
+    rows, _ = sheet
+    for mode, gear, condition, printed in SHEET_COUNTS:
+        count = float(rows.count[mode, gear, condition]) / 1e3
+        assert count == pytest.approx(printed, rel=5e-3), (mode, gear, condition)
+    # The event rate column: p at 3000 rpm in 1st gear (4.15 %) and at 5500 rpm (3.17 %).
+    assert float(rows.event_rate[0, 0, 1]) == pytest.approx(0.0415, rel=2e-3)
+    assert float(rows.event_rate[0, 0, 2]) == pytest.approx(0.0317, rel=2e-3)
+    # The sheet's 1st-gear brake rows count revolutions without p(ω); the consistent reading does not.
+    assert float(rows.event_rate[2, 0, 3]) == 1.0
+    assert float(rows.event_rate[2, 1, 3]) == pytest.approx(0.0336, rel=2e-3)
+
+
+def test_fig_4_3_7_damage_sums(sheet):
+    """Miner's sums 0.0784 and 0.1161 against the printed 0.0835 and 0.122: −6.1 % and −4.8 %.
+
+    The remaining gap: with the legible counts and the printed N_i the sums are 0.081 and
+    0.116; the sheet holds cycles that its legible rows do not show (workbook.md's −1.5 %
+    is not reproduced here).
+    """
+    _, check = sheet
+    damage = np.asarray(check.damage)
+    np.testing.assert_allclose(damage, SHEET_DAMAGE, rtol=0.065)
+    np.testing.assert_allclose(damage / SHEET_DAMAGE - 1, [-0.061, -0.048], atol=0.005)
+    assert bool(check.passed)
+    by_hand = np.sum(np.asarray(check.damage_per_row), axis=(1, 2, 3))
+    np.testing.assert_allclose(damage, by_hand, rtol=1e-12)
+
+
+def test_consistent_reading_differs_only_where_stated(chain, sheet):
+    rows_wb, check_wb = sheet
+    rows = shaft.fatigue_cycles(*chain)
+    check = shaft.fatigue_check(shaft.Section(**STEM), shaft.Material(**MATERIAL), rows)
+    first_brake = np.zeros(rows.count.shape, bool)
+    first_brake[:, 0, 3] = True
+    np.testing.assert_allclose(
+        np.asarray(rows.count)[~first_brake], np.asarray(rows_wb.count)[~first_brake], rtol=1e-12
+    )
+    ratio = np.asarray(rows_wb.count)[first_brake] / np.asarray(rows.count)[first_brake]
+    np.testing.assert_allclose(ratio, 1 / np.asarray(rows.event_rate)[first_brake], rtol=1e-12)
+    np.testing.assert_allclose(check.uts, [2180, 690], rtol=1e-12)
+    assert float(check.damage[0]) < float(check_wb.damage[0])  # fewer 1st-gear brake cycles
+    assert float(check.damage[1]) > float(check_wb.damage[1])  # the core's strength at r_TR
+
+
+def test_static_check_by_hand_and_the_inboard_stem():
+    material = shaft.Material(**MATERIAL)
+    static = shaft.static_check(shaft.Section(**STEM), material, np.array([1154.0, 750.0]))
+    J = math.pi * 30.685**4 / 32
+    radius = np.array([15.3425, 12.8425, 9.3425])
+    allowed = np.array([2180, 1962, 690]) / (1.2 * math.sqrt(3))
+    expected = allowed / (1154e3 * radius / J)
+    np.testing.assert_allclose(static.safety[0], expected, rtol=1e-9)
+    np.testing.assert_allclose(static.safety[1], expected * 1154 / 750, rtol=1e-9)
+    assert static.safety.shape == (2, 3) and bool(np.all(static.passed))
+    # The inboard stem as read (20.44 mm, h 1.2, t 1.1) fails; 28.44 mm passes.
+    inboard = dict(hardened_depth=1.2, transition_depth=1.1)
+    small = shaft.static_check(shaft.Section(20.44, **inboard), material, 1154.0)
+    large = shaft.static_check(shaft.Section(28.44, **inboard), material, 1154.0)
+    assert not bool(small.passed) and bool(large.passed)
+
+
+def test_hollow_section():
+    section = shaft.Section(40.0, 2.0, 1.0, inner_diameter=20.0)
+    assert float(shaft.polar_moment(section)) == pytest.approx(
+        math.pi * (40**4 - 20**4) / 32, rel=1e-12
+    )
+    static = shaft.static_check(section, shaft.Material(**MATERIAL), 2000.0)
+    assert np.asarray(static.radius) == pytest.approx([20, 18, 17])
+
+
+def _damage_and_safety(outer, depth, chain_rows):
+    section = shaft.Section(outer, depth, 3.5)
+    material = shaft.Material(**MATERIAL)
+    check = shaft.fatigue_check(section, material, chain_rows, reading="workbook")
+    static = shaft.static_check(section, material, 1154.0)
+    return jnp.concatenate([check.damage, static.safety])
+
+
+def test_derivatives_agree_with_finite_differences(sheet):
+    rows, _ = sheet
+    x = (30.685, 2.5)
+    jac = jax.jacfwd(_damage_and_safety, argnums=(0, 1))(*x, rows)
+    for i, h in enumerate((1e-5, 1e-6)):
+        plus, minus = list(x), list(x)
+        plus[i] += h
+        minus[i] -= h
+        fd = (
+            np.asarray(_damage_and_safety(*plus, rows))
+            - np.asarray(_damage_and_safety(*minus, rows))
+        ) / (2 * h)
+        np.testing.assert_allclose(np.asarray(jac[i]), fd, rtol=1e-5, atol=1e-10)
+
+
+def test_float32_and_vmap_over_sections(chain):
+    cycles, modes = chain
+    rows = shaft.fatigue_cycles(
+        *jax.tree.map(lambda a: jnp.asarray(a, jnp.float32), (cycles, modes))
+    )
+    f32 = jnp.float32
+    sections = shaft.Section(
+        jnp.array([30.685, 26.0, 27.5], f32), jnp.array([2.5, 5.6, 5.6], f32), jnp.array(3.5, f32)
+    )
+    material = jax.tree.map(lambda a: jnp.asarray(a, f32), shaft.Material(**MATERIAL))
+
+    def one(s):
+        return shaft.fatigue_check(s, material, rows).damage
+
+    damage = jax.jit(jax.vmap(one))(jax.tree.map(lambda a: jnp.broadcast_to(a, (3,)), sections))
+    assert damage.dtype == jnp.float32 and damage.shape == (3, 2)
+    rows64 = shaft.fatigue_cycles(cycles, modes)
+    expected = shaft.fatigue_check(shaft.Section(**STEM), shaft.Material(**MATERIAL), rows64)
+    np.testing.assert_allclose(damage[0], expected.damage, rtol=1e-4)
+    assert bool(jnp.all(jnp.isfinite(damage)))
+
+
+@pytest.mark.parametrize(
+    "build, message",
+    [
+        (
+            lambda: shaft.Section(20.0, 1.0, 1.0, inner_diameter=20.0),
+            "Section.inner_diameter = 20.0 is outside the allowed range: "
+            "0 ≤ inner_diameter < outer_diameter (= 20.0 mm)",
+        ),
+        (
+            lambda: shaft.Section(20.0, 6.0, 5.0),
+            "Section.hardened_depth + transition_depth = 11.0 is outside the allowed range: "
+            "h + t ≤ the wall (Øe − Øi)/2 (= 10.0 mm)",
+        ),
+        (
+            lambda: shaft.Section(20.0, -1.0, 1.0),
+            "Section.hardened_depth = -1.0 is outside the allowed range: hardened_depth ≥ 0 mm",
+        ),
+        (
+            lambda: shaft.Material(**{**MATERIAL, "core_uts": 0.0}),
+            "Material.core_uts = 0.0 is outside the allowed range: core_uts > 0",
+        ),
+        (
+            lambda: shaft.Material(**{**MATERIAL, "fatigue_ratio": 1.0}),
+            "Material.fatigue_ratio = 1.0 is outside the allowed range: 1 < fatigue_ratio",
+        ),
+        (
+            lambda: shaft.Material(**{**MATERIAL, "surface_uts": 700.0}),
+            "Material.surface_uts = 700.0 is outside the allowed range: "
+            "surface_uts (1 − depth_drop) ≥ core_uts (= 690.0 MPa)",
+        ),
+        (
+            lambda: shaft.Material(**{**MATERIAL, "safety": 0.9}),
+            "Material.safety = 0.9 is outside the allowed range: 1 ≤ safety",
+        ),
+        (
+            lambda: shaft.EventRate(speed_low=300.0),
+            "EventRate.speed_high = 250.0 is outside the allowed range: speed_high > speed_low",
+        ),
+        (
+            lambda: shaft.static_check(shaft.Section(**STEM), shaft.Material(**MATERIAL), -5.0),
+            "torque = -5.0 is outside the allowed range: torque > 0",
+        ),
+    ],
+)
+def test_bad_input_names_key_value_and_range(build, message):
+    with pytest.raises(ValueError) as info:
+        build()
+    assert message in str(info.value)
+    assert "\n" not in str(info.value)
+
+
+def test_reading_and_types_are_checked(chain):
+    with pytest.raises(ValueError, match="reading = 'sheet' is not allowed"):
+        shaft.fatigue_cycles(*chain, reading="sheet")
+    with pytest.raises(TypeError, match="allowed: a shaft.Section"):
+        shaft.static_check({"outer_diameter": 30.0}, shaft.Material(**MATERIAL), 100.0)
+
+
+def test_traced_bad_input_gives_nan(sheet):
+    rows, _ = sheet
+
+    @jax.jit
+    def damage(inner):
+        section = shaft.Section(30.0, 2.5, 3.5, inner_diameter=inner)
+        return shaft.fatigue_check(section, shaft.Material(**MATERIAL), rows).damage
+
+    assert bool(jnp.all(jnp.isfinite(damage(5.0))))
+    assert bool(jnp.all(jnp.isnan(damage(40.0))))
