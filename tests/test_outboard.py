@@ -1,0 +1,168 @@
+"""The outboard fixed ball joint against fig. 4.3.10's second column ("Fixed FR").
+
+Readings (see tripodjax.outboard): 6 balls, P_s 3750, P_d 2150, P_sd 3200 MPa, C_s 1.1,
+Ψ 1.003, χ_l 0.268, ε 45°, d 18.256 mm, PCR 29.958 mm; the working conditions 6.0° (the
+angle is illegible), 0°, 0°, 8.0° (as the tripod's), 10.5° with shares 30/0/0/35/35 %.
+"""
+
+import math
+
+import jax
+import numpy as np
+import pytest
+from test_vehicle import workbook_modes, workbook_vehicle
+
+from tripodjax import hertz, life, outboard, vehicle
+
+JOINT = dict(
+    d=18.256,
+    R=29.958,
+    conformity=1.003,
+    longitudinal_conformity=0.268,
+    P_s=3750.0,
+    P_d=2150.0,
+    P_sd=3200.0,
+    C_s=1.1,
+)
+L0_KM = 202_617.0  # 0° with the 15 % tolerance (1779 h at 113.9 km/h)
+ANGLES_DEG = np.array([6.0, 0.0, 0.0, 8.0, 10.5])
+SHARES = np.array([0.30, 0.0, 0.0, 0.35, 0.35])
+
+
+def test_contact_geometry_of_the_sheet():
+    g = hertz.contact_geometry(1.003, 0.268)
+    assert float(g.chi_q) == pytest.approx(-0.997, abs=5e-4)
+    assert float(g.d_sum_rho) == pytest.approx(2.543, abs=1.5e-3)
+    # A straight track (χ_l = 0) is the tripod's geometry.
+    assert float(hertz.contact_geometry(1.002, 0.0).d_sum_rho) == pytest.approx(2.004, abs=1e-3)
+
+
+def test_capacities_and_static_safety_of_fig_4_3_10():
+    joint = outboard.FixedJoint(**JOINT)
+    caps = outboard.capacities(joint, reading="workbook")
+    assert float(caps.mu_nu) == pytest.approx(2.540, rel=1e-3)
+    assert float(caps.C_p) == pytest.approx(629.0, rel=1e-3)
+    assert float(caps.M_s) == pytest.approx(6734.0, rel=5e-3)
+    assert float(caps.M_d) == pytest.approx(1269.0, rel=5e-3)
+    assert float(caps.M_sd) == pytest.approx(4183.0, rel=5e-3)
+    cycles = vehicle.load_cycles(workbook_vehicle(), workbook_modes(), 100_000.0)
+    safety = outboard.static_safety(joint, cycles.M_max_forward, reading="workbook")
+    assert float(safety) == pytest.approx(5.833, rel=5e-3)
+    d_min, R_min = outboard.min_ball_diameter(
+        joint, 1154.0, R_over_d=1.65, C_s=1.35, reading="workbook"
+    )
+    assert float(d_min) == pytest.approx(12.424, rel=2e-3)
+    assert float(R_min) == pytest.approx(20.499, rel=2e-3)
+    # The exact Hertz μν (2.571 at cos τ = 0.99529) gives 3.8 % more torque.
+    exact = outboard.capacities(joint)
+    assert float(exact.M_s) / float(caps.M_s) == pytest.approx(
+        (float(exact.mu_nu) / 2.5418) ** 3, rel=1e-3
+    )
+
+
+def test_one_contact_model_for_both_joints():
+    """The ball joint's capacities are hertz.capacities with its numbers, by hand."""
+    joint = outboard.FixedJoint(**JOINT)
+    caps = outboard.capacities(joint)
+    C_p = float(caps.C_p)
+    by_hand = 6 * (3750 / (1.1 * C_p)) ** 3 * 18.256**2 * 29.958 * math.sin(math.pi / 4) / 1000
+    assert float(caps.M_s) == pytest.approx(by_hand, rel=1e-12)
+    geometry = hertz.contact_geometry(1.003, 0.268)
+    expected_C_p = (
+        858.0 / float(hertz.mu_nu(geometry.cos_tau)) * float(geometry.d_sum_rho) ** (2 / 3)
+    )
+    assert C_p == pytest.approx(expected_C_p, rel=1e-12)
+
+
+def test_working_conditions_from_the_0_degree_life():
+    """Fig. 4.3.10: 140 772, 202 617 (×2), 100 128 km and 117 671 km combined, within 0.1 %."""
+    g = np.asarray(life.angle_factor(np.radians(ANGLES_DEG)))
+    km = L0_KM * g
+    assert km[0] == pytest.approx(140_772.0, rel=1e-3)
+    assert km[4] == pytest.approx(100_128.0, rel=1e-3)
+    assert km[1] == km[2] == L0_KM
+    combined = 1 / np.sum(SHARES / km)
+    assert combined == pytest.approx(117_671.0, rel=1e-3)
+    P = SHARES * L0_KM / km  # the sheet's "P" row: 43 %, 58 %, 71 %, sum 172 %
+    np.testing.assert_allclose(np.round(100 * P[[0, 3, 4]]), [43, 58, 71])
+    assert round(100 * P.sum()) == 172
+
+
+def test_life_from_the_vehicle_and_its_gap():
+    """The chain's 0° life is 17.9 % below the sheet's 202 617 km (see tripodjax.outboard)."""
+    modes = workbook_modes()
+    spectrum = vehicle.load_spectrum(vehicle.load_cycles(workbook_vehicle(), modes, 100_000.0))
+    conditions = life.WorkingConditions(np.radians(ANGLES_DEG), SHARES)
+    joint = outboard.FixedJoint(**JOINT)
+    out = outboard.joint_life(joint, spectrum, conditions, reading="workbook")
+    at_0 = float(out.km_per_condition[1])
+    assert at_0 / L0_KM - 1 == pytest.approx(-0.179, abs=0.005)
+    # The per-condition lives follow the 0° life by the angle law, combined by Miner's rule.
+    g = np.asarray(life.angle_factor(np.radians(ANGLES_DEG)))
+    np.testing.assert_allclose(out.km_per_condition, at_0 * g, rtol=1e-12)
+    assert float(out.km) == pytest.approx(1 / np.sum(SHARES / (at_0 * g)), rel=1e-12)
+    # The tolerance multiplies every life by 1.15.
+    plain = outboard.joint_life(
+        outboard.FixedJoint(**JOINT, tolerance=0.0), spectrum, conditions, reading="workbook"
+    )
+    assert float(out.km) / float(plain.km) == pytest.approx(1.15, rel=1e-12)
+
+
+def test_derivatives_and_float32():
+    def m_s(d, chi_l):
+        joint = outboard.FixedJoint(**{**JOINT, "d": d, "longitudinal_conformity": chi_l})
+        return outboard.capacities(joint).M_s
+
+    x = (18.256, 0.268)
+    grads = jax.grad(m_s, argnums=(0, 1))(*x)
+    for i, h in enumerate((1e-5, 1e-6)):
+        plus, minus = list(x), list(x)
+        plus[i] += h
+        minus[i] -= h
+        fd = (float(m_s(*plus)) - float(m_s(*minus))) / (2 * h)
+        assert float(grads[i]) == pytest.approx(fd, rel=1e-6), i
+    joint32 = jax.tree.map(lambda a: np.float32(a), outboard.FixedJoint(**JOINT))
+    caps = outboard.capacities(joint32)
+    assert caps.M_s.dtype == np.float32
+    assert float(caps.M_s) == pytest.approx(
+        float(outboard.capacities(outboard.FixedJoint(**JOINT)).M_s), rel=1e-4
+    )
+
+
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        ({"conformity": 1.0}, "FixedJoint.conformity = 1.0 is outside the allowed range"),
+        (
+            {"longitudinal_conformity": -1.5},
+            "FixedJoint.longitudinal_conformity = -1.5 is outside the allowed range: "
+            "-1 < longitudinal_conformity ≤ 1",
+        ),
+        ({"P_d": 0.0}, "FixedJoint.P_d = 0.0 is outside the allowed range: P_d > 0"),
+        ({"tolerance": -0.1}, "FixedJoint.tolerance = -0.1 is outside the allowed range"),
+        (
+            {"pressure_angle": 2.0},
+            "FixedJoint.pressure_angle = 2.0 is outside the allowed range",
+        ),
+    ],
+)
+def test_bad_input_names_key_value_and_range(changes, message):
+    with pytest.raises(ValueError) as info:
+        outboard.FixedJoint(**{**JOINT, **changes})
+    assert message in str(info.value)
+
+
+def test_hertz_checks_the_longitudinal_conformity():
+    with pytest.raises(ValueError, match="longitudinal_conformity = 2.0 is outside"):
+        hertz.capacities(
+            18.0,
+            30.0,
+            conformity=1.003,
+            P_s=1.0,
+            P_d=1.0,
+            P_sd=1.0,
+            C_s=1.1,
+            longitudinal_conformity=2.0,
+        )
+    with pytest.raises(ValueError, match="reading = 'table' is not allowed"):
+        outboard.capacities(outboard.FixedJoint(**JOINT), reading="table")
