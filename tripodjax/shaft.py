@@ -346,6 +346,11 @@ def static_check(section: Section, material: Material, torque: ArrayLike) -> Sta
     check_instance("section", section, Section, "a shaft.Section")
     check_instance("material", material, Material, "a shaft.Material")
     check_positive(torque=torque)
+    return _static_check(section, material, torque)
+
+
+@jax.jit
+def _static_check(section, material, torque):
     radius, uts = _kinks(section, material)
     allowed = uts / (jnp.asarray(material.safety)[..., None] * SQRT3)
     J = polar_moment(section)[..., None]
@@ -408,13 +413,18 @@ def fatigue_cycles(
     event_rate = EventRate() if event_rate is None else event_rate
     check_instance("event_rate", event_rate, EventRate, "a shaft.EventRate")
     check_choice("reading", reading, READINGS)
+    if np.shape(modes.use) != np.shape(cycles.working_torque):
+        raise ValueError(
+            f"modes.use has shape {np.shape(modes.use)}; the cycles have "
+            f"{np.shape(cycles.working_torque)}: build the cycles from the same modes"
+        )
+    return _fatigue_cycles(cycles, modes, event_rate, reading == "workbook")
+
+
+@jax.jit(static_argnums=3)
+def _fatigue_cycles(cycles, modes, event_rate, workbook):
     use = jnp.asarray(modes.use)
     weight = jnp.asarray(modes.weight)
-    if use.shape != cycles.working_torque.shape:
-        raise ValueError(
-            f"modes.use has shape {use.shape}; the cycles have {cycles.working_torque.shape}: "
-            "build the cycles from the same modes"
-        )
     drive = jnp.sum(use[..., :3], axis=-1)  # (M, G+1)
     drive_total = jnp.sum(drive, axis=-1, keepdims=True)
     unclaimed = 1.0 - jnp.sum(use, axis=(-2, -1))[..., None]
@@ -424,7 +434,7 @@ def fatigue_cycles(
     rate = event_rate(speed)
     n_gears = use.shape[-2]
     first = (jnp.arange(n_gears) == 0)[:, None] & (jnp.arange(4) == 3)[None, :]
-    if reading == "workbook":
+    if workbook:
         rate = jnp.where(first, 1.0, rate)
     sign = jnp.where(jnp.arange(n_gears) == 0, -1.0, 1.0)  # the sheet's: a reversal in 1st only
     count = weight[:, None, None] * cycles.total_revolutions * row_use * rate
@@ -497,9 +507,14 @@ def fatigue_check(
         raise ValueError(
             "fatigue_check takes one section and one material (scalar fields); vmap over several"
         )
+    return _fatigue_check(s, m, rows, reading == "workbook")
+
+
+@jax.jit(static_argnums=3)
+def _fatigue_check(s, m, rows, workbook):
     r_o = jnp.asarray(s.outer_diameter) / 2.0
     r_tr = r_o - s.hardened_depth - s.transition_depth
-    core = jnp.asarray(m.core_uts) * (1.0 + m.depth_drop if reading == "workbook" else 1.0)
+    core = jnp.asarray(m.core_uts) * (1.0 + m.depth_drop if workbook else 1.0)
     radius = jnp.stack(jnp.broadcast_arrays(r_o, r_tr))
     uts = jnp.stack(jnp.broadcast_arrays(jnp.asarray(m.surface_uts, core.dtype), core))
     fatigue_limit = uts / m.fatigue_ratio
