@@ -25,7 +25,7 @@ from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
 import tripodjax as tj
-from tripodjax import catalogue, friction, hertz, life
+from tripodjax import catalogue, friction, hertz, life, outboard, shaft
 
 FUZZ = settings(
     max_examples=25,
@@ -422,6 +422,49 @@ BOUNDARY = {
             "layouts": "object",
         },
         "{}",
+    ),
+    "shaft.Section": (
+        shaft.Section,
+        dict(outer_diameter=30.0, hardened_depth=2.5, transition_depth=3.5, inner_diameter=5.0),
+        {
+            "outer_diameter": "positive",
+            "hardened_depth": "non_negative",
+            "transition_depth": "non_negative",
+            "inner_diameter": "non_negative",
+        },
+        "Section.{}",
+    ),
+    "shaft.Material": (
+        shaft.Material,
+        dict(core_uts=690.0, surface_uts=2180.0, depth_drop=0.1, fatigue_ratio=1.6, safety=1.2),
+        {"core_uts": "positive", "surface_uts": "positive", "depth_drop": "unit"},
+        "Material.{}",
+    ),
+    "outboard.FixedJoint": (
+        outboard.FixedJoint,
+        dict(
+            d=18.256,
+            R=29.958,
+            conformity=1.003,
+            longitudinal_conformity=0.268,
+            P_s=3750.0,
+            P_d=2150.0,
+            P_sd=3200.0,
+            C_s=1.1,
+        ),
+        {
+            "d": "positive",
+            "R": "positive",
+            "conformity": "conformity",
+            "P_s": "positive",
+            "P_d": "positive",
+            "P_sd": "positive",
+            "C_s": "positive",
+            "pressure_angle": "pressure_angle",
+            "oblique_angle": "helix_angle",
+            "tolerance": "non_negative",
+        },
+        "FixedJoint.{}",
     ),
     "GAFInputs": (
         tj.GAFInputs,
