@@ -14,6 +14,7 @@ import pytest
 from test_vehicle import workbook_modes, workbook_vehicle
 
 from tripodjax import shaft, vehicle
+from tripodjax.results import RESULTS
 
 STEM = dict(outer_diameter=30.685, hardened_depth=2.5, transition_depth=3.5)
 MATERIAL = dict(core_uts=690.0, surface_uts=2180.0, depth_drop=0.10, fatigue_ratio=1.6, safety=1.2)
@@ -344,7 +345,9 @@ def test_traced_bad_input_gives_nan(sheet):
     @jax.jit
     def damage(inner):
         section = shaft.Section(30.0, 2.5, 3.5, inner_diameter=inner)
-        return shaft.fatigue_check(section, shaft.Material(**MATERIAL), rows).damage
+        return shaft.fatigue_check(section, shaft.Material(**MATERIAL), rows)
 
-    assert bool(jnp.all(jnp.isfinite(damage(5.0))))
-    assert bool(jnp.all(jnp.isnan(damage(40.0))))
+    good, bad = damage(5.0), damage(40.0)
+    assert bool(jnp.all(jnp.isfinite(good.damage))) and int(good.result) == 0
+    assert bool(jnp.all(jnp.isnan(bad.damage))) and not bool(bad.passed)
+    assert int(bad.result) == int(RESULTS.nonfinite)

@@ -97,6 +97,7 @@ from tripodjax._checks import (
 )
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.hertz import _nan_unless
+from tripodjax.results import RESULTS, code_where
 from tripodjax.vehicle import DrivingModes, LoadCycles
 
 __all__ = [
@@ -326,7 +327,10 @@ class StaticCheck:
         allowed_shear: τ_adm = σ_R / (C_s √3) [MPa].
         shear: τ = T r / J under the torque [MPa].
         safety: τ_adm / τ [–] at each radius; the section's is their minimum.
-        passed: every safety ≥ 1 (bool).
+        passed: every safety ≥ 1 (bool; False where a safety is NaN).
+        result: code (int32, [`RESULTS`][tripodjax.results.RESULTS]): ``successful``,
+            or ``nonfinite`` where an input is outside its domain or not finite inside
+            ``jit`` (the safeties are then NaN).
     """
 
     radius: jax.Array
@@ -335,6 +339,7 @@ class StaticCheck:
     shear: jax.Array
     safety: jax.Array
     passed: jax.Array
+    result: jax.Array
 
 
 def static_check(section: Section, material: Material, torque: ArrayLike) -> StaticCheck:
@@ -366,7 +371,14 @@ def _static_check(section, material, torque):
         shear=_nan_unless(ok, shear),
         safety=safety,
         passed=jnp.all(safety >= 1.0, axis=-1),
+        result=_code(safety, axis=-1),
     )
+
+
+def _code(value, axis):
+    """``successful`` where every value along ``axis`` is finite, else ``nonfinite``."""
+    finite = jnp.all(jnp.isfinite(value), axis=axis)
+    return code_where(finite, RESULTS.successful, RESULTS.nonfinite)
 
 
 @pytree_dataclass
@@ -471,7 +483,10 @@ class FatigueCheck:
         cycles_to_failure: N [–].
         damage_per_row: n / N [–].
         damage: Miner's sum Σ n/N per radius [–].
-        passed: damage < 1 at both radii (bool).
+        passed: damage < 1 at both radii (bool; False where a damage is NaN).
+        result: code (int32, [`RESULTS`][tripodjax.results.RESULTS]): ``successful``,
+            or ``nonfinite`` where an input is outside its domain or not finite inside
+            ``jit`` (the damage is then NaN).
     """
 
     radius: jax.Array
@@ -487,6 +502,7 @@ class FatigueCheck:
     damage_per_row: jax.Array
     damage: jax.Array
     passed: jax.Array
+    result: jax.Array
 
 
 def fatigue_check(
@@ -548,4 +564,5 @@ def _fatigue_check(s, m, rows, workbook):
         damage_per_row=_nan_unless(ok, per_row),
         damage=damage,
         passed=jnp.all(damage < 1.0),
+        result=_code(damage, axis=0),
     )
