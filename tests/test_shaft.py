@@ -320,6 +320,17 @@ def test_float32_and_vmap_over_sections(chain):
             "EventRate.speed_high = 250.0 is outside the allowed range: speed_high > speed_low",
         ),
         (
+            lambda: shaft.Section(np.array([20.0, 30.0]), np.array([6.0, 1.0]), 5.0),
+            "Section.hardened_depth + transition_depth[0] = 11.0 is outside the allowed range: "
+            "h + t ≤ the wall (Øe − Øi)/2 (= 10.0 mm)",
+        ),
+        (
+            lambda: shaft.strength_profile(
+                shaft.Section(**STEM), shaft.Material(**MATERIAL), np.array([15.0, 16.0])
+            ),
+            "radius[1] = 16.0 is outside the allowed range: Øi/2 ≤ radius ≤ Øe/2 (= 0.0–15.3425 mm)",
+        ),
+        (
             lambda: shaft.static_check(shaft.Section(**STEM), shaft.Material(**MATERIAL), -5.0),
             "torque = -5.0 is outside the allowed range: torque > 0",
         ),

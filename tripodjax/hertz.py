@@ -300,8 +300,8 @@ def contact_geometry(
     )
 
 
-def _check_longitudinal(value):
-    check_range("longitudinal_conformity", value, -1.0, 1.0, low_open=True)
+def _check_longitudinal(value, name="longitudinal_conformity"):
+    check_range(name, value, -1.0, 1.0, low_open=True)
 
 
 def _conformity_coefficient(conformity, longitudinal_conformity=0.0):

@@ -95,12 +95,8 @@ class FixedJoint:
     def __post_init__(self) -> None:
         check_positive(**{f"FixedJoint.{k}": getattr(self, k) for k in _POSITIVE})
         check_conformity(self.conformity, "FixedJoint.conformity")
-        check_range(
-            "FixedJoint.longitudinal_conformity",
-            self.longitudinal_conformity,
-            -1.0,
-            1.0,
-            low_open=True,
+        hertz._check_longitudinal(
+            self.longitudinal_conformity, "FixedJoint.longitudinal_conformity"
         )
         check_range(
             "FixedJoint.pressure_angle",

@@ -170,7 +170,7 @@ class Section:
 
 def _first(values, a):
     """The first value where the mask ``a`` holds (for an error message), as a float."""
-    return float(values[np.argwhere(a)[0]] if values.ndim else values) if np.any(a) else 0.0
+    return float(values[tuple(np.argwhere(a)[0])] if values.ndim else values) if np.any(a) else 0.0
 
 
 @checked_pytree_dataclass
@@ -291,7 +291,7 @@ def _kinks(section, material):
 
 
 def strength_profile(section: Section, material: Material, radius: ArrayLike) -> jax.Array:
-    """σ_R(r) [MPa] at the radius r [mm] (0 ≤ r ≤ Øe/2): the piecewise-linear layer profile.
+    """σ_R(r) [MPa] at the radius r [mm] (Øi/2 ≤ r ≤ Øe/2): the piecewise-linear layer profile.
 
     Linear from σ_R,s at the surface to (1 − Δ) σ_R,s at the depth h, then to σ_R,c
     at h + t; σ_R,c below. Where h or t is 0 the profile steps there (the value
@@ -299,7 +299,17 @@ def strength_profile(section: Section, material: Material, radius: ArrayLike) ->
     """
     check_instance("section", section, Section, "a shaft.Section")
     check_instance("material", material, Material, "a shaft.Material")
-    check_non_negative("radius", radius, " mm")
+    arrays = _concrete(radius, section.outer_diameter, section.inner_diameter)
+    if arrays is not None:
+        r, outer, inner = np.broadcast_arrays(*arrays)
+        outside = ~((r >= inner / 2.0) & (r <= outer / 2.0))
+        check(
+            "radius",
+            r,
+            lambda a: ~outside,
+            f"Øi/2 ≤ radius ≤ Øe/2 (= {_first(inner / 2.0, a=outside)}–"
+            f"{_first(outer / 2.0, a=outside)} mm)",
+        )
     s, m = section, material
     depth = jnp.asarray(s.outer_diameter) / 2.0 - jnp.asarray(radius)
     h, t = jnp.asarray(s.hardened_depth), jnp.asarray(s.transition_depth)
