@@ -279,6 +279,15 @@ def test_float32_and_vmap_over_sections(chain):
     expected = shaft.fatigue_check(shaft.Section(**STEM), shaft.Material(**MATERIAL), rows64)
     np.testing.assert_allclose(damage[0], expected.damage, rtol=1e-4)
     assert bool(jnp.all(jnp.isfinite(damage)))
+    safety = jax.jit(jax.vmap(lambda s: shaft.static_check(s, material, f32(1154.0)).safety))(
+        jax.tree.map(lambda a: jnp.broadcast_to(a, (3,)), sections)
+    )
+    assert safety.dtype == jnp.float32 and safety.shape == (3, 3)
+    np.testing.assert_allclose(
+        safety[0],
+        shaft.static_check(shaft.Section(**STEM), shaft.Material(**MATERIAL), 1154.0).safety,
+        rtol=1e-5,
+    )
 
 
 @pytest.mark.parametrize(
