@@ -150,7 +150,8 @@ def capacities(
     ``n_balls`` an integer ≥ 1; ``gamma`` the working angle [rad] for M_d and
     M_sd; ``reading`` ``"consistent"`` (exact Hertz μν) or ``"workbook"`` (μν
     at cos τ truncated to 10⁻³, the book table's step: the sheet's 2.540 and
-    2.650; see the module docstring).
+    2.650; see the module docstring). The workbook reading is for reproducing the
+    sheet: its μν steps with cos τ, so its derivatives hold the table's value fixed.
     """
     check_instance("joint", joint, FixedJoint, "an outboard.FixedJoint")
     factor = _table_factor(joint, reading)
