@@ -455,9 +455,9 @@ def _fatigue_cycles(cycles, modes, event_rate, workbook):
     speed = cycles.shaft_speed * RPM_TO_RAD_S
     rate = event_rate(speed)
     n_gears = use.shape[-2]
-    first = (jnp.arange(n_gears) == 0)[:, None] & (jnp.arange(4) == 3)[None, :]
-    if workbook:
-        rate = jnp.where(first, 1.0, rate)
+    if workbook:  # the 1st gear's engine-brake rows without p(ω)
+        first_brake = (jnp.arange(n_gears) == 0)[:, None] & (jnp.arange(4) == 3)[None, :]
+        rate = jnp.where(first_brake, 1.0, rate)
     sign = jnp.where(jnp.arange(n_gears) == 0, -1.0, 1.0)  # the sheet's: a reversal in 1st only
     count = weight[:, None, None] * cycles.total_revolutions * row_use * rate
     brake_torque = sign * cycles.working_torque[..., 3] / cycles.shock_factor  # (M, G+1)
