@@ -71,6 +71,17 @@ def row(result, name):
             'R = { distribution = "normal", sd = 0.01 }\ncorrelation = [["R", "l", 0.2]]',
             ("uncertainty.correlation[0]", "'l'"),
         ),
+        (
+            'R = { distribution = "normal", sd = 0.01 }\n'
+            'd_roller = { distribution = "normal", sd = 0.01 }\n'
+            'correlation = [["R", "d_roller", 0.3], ["d_roller", "R", -0.3]]',
+            ("uncertainty.correlation[1]", "uncertainty.correlation[0]", "each pair once"),
+        ),
+        (
+            'hertz.P_d = { distribution = "normal", cov = 0.05 }\n'
+            '"hertz.P_d" = { distribution = "normal", cov = 0.05 }',
+            ("uncertainty.hertz.P_d", "twice"),
+        ),
     ],
 )
 def test_bad_uncertainty_is_one_line_naming_key_and_value(text, names):
@@ -80,6 +91,36 @@ def test_bad_uncertainty_is_one_line_naming_key_and_value(text, names):
     assert "\n" not in message
     for name in names:
         assert name in message
+
+
+@pytest.mark.parametrize(
+    ("text", "where"),
+    [
+        ("R = { sd = 0.01 }", "uncertainty.R"),
+        ("d_roller = {}", "uncertainty.d_roller"),
+        ("hertz.P_d = { cov = 0.05 }", "uncertainty.hertz.P_d"),
+        ('"hertz.P_d" = { cov = 0.05 }', "uncertainty.hertz.P_d"),
+        ("hertz = { P_d = { cov = 0.05 } }", "uncertainty.hertz.P_d"),
+    ],
+)
+def test_an_entry_without_a_distribution_says_so(text, where):
+    """Not "unknown key uncertainty.R.sd": the entry's distribution key is missing."""
+    with pytest.raises(optimize.SpecError) as error:
+        optimize.parse_spec("[uncertainty]\n" + text)
+    message = str(error.value)
+    assert message.startswith(f"{where} has no distribution key") and "\n" not in message
+    assert all(repr(kind) in message for kind in uncertainty.KINDS)
+
+
+def test_a_quoted_dotted_key_is_the_nested_one():
+    """The form the messages suggest, section.key, is accepted quoted as well."""
+    entry = '{ distribution = "normal", cov = 0.05 }'
+    quoted = optimize.parse_spec(f'[uncertainty]\n"hertz.P_d" = {entry}\n')
+    nested = optimize.parse_spec(f"[uncertainty]\nhertz.P_d = {entry}\n")
+    assert quoted.structure == nested.structure
+    assert quoted.values["uncertainty"] == nested.values["uncertainty"]
+    (one,) = quoted.structure.uncertainty
+    assert (one.name, one.section, one.key) == ("hertz.P_d", "hertz", "P_d")
 
 
 @pytest.mark.parametrize(
