@@ -2,8 +2,8 @@
 
 The page sets the designs, the objectives, each requirement's margin (met or not) and each
 quantity next to each other with the change from A to B, and lists the spec keys whose values
-differ. Exit status: 0 written; 2 a folder without a readable report.json, or bad arguments;
-3 the page could not be written.
+differ. Exit status: 0 written; 2 a folder without a readable report.json (or one that
+optimize-joint did not write), or bad arguments; 3 the page could not be written.
 """
 
 import argparse
@@ -177,7 +177,10 @@ def main(argv=None):
             "Set two optimize-joint reports side by side: designs, objectives, each requirement's "
             "margin and each quantity with the change from A to B, and the spec keys that differ."
         ),
-        epilog="Exit status: 0 written; 2 a folder without a readable report.json; 3 the page could not be written.",
+        epilog=(
+            "Exit status: 0 written; 2 a folder without a readable report.json of optimize-joint; "
+            "3 the page could not be written."
+        ),
     )
     parser.add_argument("dir_a", metavar="DIR_A", help="output folder of the first run (A)")
     parser.add_argument("dir_b", metavar="DIR_B", help="output folder of the second run (B)")

@@ -572,6 +572,41 @@ def test_cli_reliability_table_with_the_default_tolerances(tmp_path):
     assert (out / "importance.png").stat().st_size > 0
 
 
+@pytest.mark.parametrize(
+    ("extra", "flags"),
+    [("", ()), ("[constraints]\nmax_failure_probability_life = 1e-3\n", ("--reliability",))],
+    ids=["own-uncertainty", "chance-constraint-and-flag"],
+)
+def test_cli_spec_with_its_own_uncertainty(tmp_path, extra, flags):
+    """A spec's own [uncertainty] (issue 36: a TypeError after the solve, exit 1, no report):
+    exit 0 and its reliability table, with a chance constraint and --reliability too. The
+    sensitivities are derivatives w.r.t. the model's numbers, none of the uncertainty tables."""
+    from reference import reference_default_design
+    from test_optimize_cli import run_cli, strict_json
+
+    spec, out = tmp_path / "spec.toml", tmp_path / "report"
+    spec.write_text(TOLERANCES + extra, encoding="utf-8")
+    result = run_cli(str(spec), *flags, "--out", str(out), "--progress", "off")
+    assert result.returncode == 0, result.stderr
+    report = strict_json(out / "report.json")
+    table = report["reliability"]
+    assert table["tolerances"] == "spec"
+    assert set(table["inputs"]) == {"R", "d_roller", "conformity", "hertz.P_d"}
+    assert (out / "importance.png").stat().st_size > 0
+    assert report["sensitivities"] and not any(
+        k.startswith("uncertainty") for k in report["sensitivities"]
+    )
+    assert report["spec"]["uncertainty"]["hertz"]["P_d"]["distribution"] == "normal"
+    life = row(table, "life")
+    if extra:  # the chance constraint is active: FORM's β at the design is −Φ⁻¹(1e-3)
+        assert report["multipliers"]["max_failure_probability_life"] > 0
+        assert life["beta_form"] == pytest.approx(-stats.norm.ppf(1e-3), rel=0.01)
+    else:  # the tolerances alone change no deterministic number: the workbook chain's design
+        R, d = reference_default_design()
+        assert report["design"]["R_mm"] == pytest.approx(R, rel=2e-3)
+        assert report["design"]["d_roller_mm"] == pytest.approx(d, rel=2e-3)
+
+
 def test_reliability_index_and_probability_forms_are_one_constraint():
     """min_reliability_index_life = β and max_failure_probability_life = Φ(−β) give one margin."""
     beta = 2.5
