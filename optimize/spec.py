@@ -389,10 +389,10 @@ def _plain(value):
 
 def _bounded_text(table, path=()):
     """Refuse a key or a text of ``table`` longer than allowed, before a message repeats it."""
-    where = ".".join(path)
+    where = ".".join(map(str, path))
     if isinstance(table, dict):
         for key, value in table.items():
-            if len(key) > MAX_TEXT_LENGTH:
+            if isinstance(key, str) and len(key) > MAX_TEXT_LENGTH:
                 raise SpecError(
                     f"the key {key[:20]!r}… in {where or 'the spec'} is {len(key)} characters "
                     f"long; at most {MAX_TEXT_LENGTH} allowed"
@@ -505,7 +505,7 @@ def _merge(default, override, path=()):
     """Deep-merge ``override`` into ``default``, rejecting keys the default does not know."""
     merged = copy.deepcopy(default)
     for key, value in override.items():
-        where = ".".join(path + (key,))
+        where = ".".join(map(str, path + (key,)))
         section = path[0] if path else None
         if (
             key not in default
