@@ -302,7 +302,8 @@ def test_parse_and_load_name_an_argument_of_the_wrong_type(call, name):
 
 
 @pytest.mark.parametrize(
-    "sections", [{"loads": 5}, {"loads": ["M_max"]}, {"bounds": {"R": {"lo": 1}}}]
+    "sections",
+    [{"loads": 5}, {"loads": ["M_max"]}, {"bounds": {"R": {"lo": 1}}}, {"life": {5: 1.0}}],
 )
 def test_replace_values_with_a_malformed_section_is_one_line(sections):
     with pytest.raises(optimize.SpecError) as info:
