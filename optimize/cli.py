@@ -210,6 +210,22 @@ def _mid_box(spec):
     }
 
 
+def _deterministic(spec):
+    """The problem the solve needs: without a chance constraint the spec's [uncertainty]
+    enters only the reliability table, so the solve and every evaluation run on the spec
+    without it (the programs of the same spec without [uncertainty], compiled once)."""
+    import dataclasses
+
+    from tripodjax.optimize.spec import Spec
+
+    if spec.structure.chance or not spec.structure.uncertainty:
+        return spec
+    structure = dataclasses.replace(spec.structure, uncertainty=())
+    return Spec(
+        structure=structure, values={**spec.values, "uncertainty": {}}, resolved=spec.resolved
+    )
+
+
 def main(argv=None):
     """The command: parse, check, compute (in a worker thread), write. Returns the exit status."""
     argv = sys.argv[1:] if argv is None else argv
@@ -250,8 +266,12 @@ def _main(argv):
         return _write(args, outcome)
 
 
-def _compute(args, spec, command_line):
-    """Everything the report holds: solve, catalogue, landscape, sensitivities, figures."""
+def _compute(args, given, command_line):
+    """Everything the report holds: solve, catalogue, landscape, sensitivities, figures.
+
+    ``given`` is the spec as loaded (its reliability table and the report's spec); the
+    solve and the evaluations run on its deterministic problem (``_deterministic``).
+    """
     import contextvars
     from concurrent.futures import ThreadPoolExecutor
 
@@ -276,6 +296,7 @@ def _compute(args, spec, command_line):
     from tripodjax.optimize.sensitivity import sensitivities
     from tripodjax.optimize.solver import _with, run
 
+    spec = _deterministic(given)
     progress = {"auto": None, "on": True, "off": False}[args.progress]
     pareto_weights, weight = [], None
     if "gaf_rms" in spec.structure.objective:
@@ -293,7 +314,9 @@ def _compute(args, spec, command_line):
     # second thread beside the solve, at a design inside the box.
     full_reference = None
     if spec.structure.fidelity != "newton" or spec.structure.n_theta != 360:
-        full_reference = spec.replace_values(solver={"fidelity": "newton", "n_theta": 360})
+        full_reference = _deterministic(
+            spec.replace_values(solver={"fidelity": "newton", "n_theta": 360})
+        )
     # Matplotlib, Jinja2, openpyxl and the report templates load beside the solve.
     threading.Thread(target=document.prepare, daemon=True).start()
     pool = ThreadPoolExecutor(max_workers=1)
@@ -311,7 +334,7 @@ def _compute(args, spec, command_line):
             landscape = constraint_landscape(spec, *_landscape_axes(spec, catalogue))
             if result.converged:  # derivatives of an optimum, not of an unfinished point
                 result.sensitivities = sensitivities(spec, result)
-            reliability = report_reliability(spec, result.design, args.reliability)
+            reliability = report_reliability(given, result.design, args.reliability)
             full = None
             if full_reference is not None:
                 warm.result()
@@ -337,7 +360,7 @@ def _compute(args, spec, command_line):
         figures["importance.png"] = report.figure_importance(reliability)
     body = report.report_dict(
         result,
-        spec,
+        given,
         pareto=pareto,
         catalogue=catalogue,
         choice=choice,

@@ -2,8 +2,8 @@
 
 The page sets the designs, the objectives, each requirement's margin (met or not) and each
 quantity next to each other with the change from A to B, and lists the spec keys whose values
-differ. Exit status: 0 written; 2 a folder without a readable report.json, or bad arguments;
-3 the page could not be written.
+differ. Exit status: 0 written; 2 a folder without a readable report.json (or one that
+optimize-joint did not write), or bad arguments; 3 the page could not be written.
 """
 
 import argparse
@@ -15,6 +15,13 @@ import tempfile
 from tripodjax.optimize.document import NotAvailable, cell, fmt, version_note
 
 EXIT_OK, EXIT_BAD_INPUT, EXIT_WRITE_FAILED = 0, 2, 3
+# What every report.json optimize-joint has written holds, beside versions.tripodjax.
+REQUIRED = {"design": dict, "converged": bool, "constraints": dict}
+# A relative change (B − A)/|A| is shown where |A| is at least this share of its scale: 1 for a
+# margin ln(value/limit) (itself relative), max(|A|, |B|) for any other number. Below it, A is
+# zero up to the solve (an active constraint's margin is of the order of the solver's tolerance)
+# and the relative change is noise: the page gives the change B − A alone.
+NEAR_ZERO = 1e-3
 
 
 class _Parser(argparse.ArgumentParser):
@@ -36,8 +43,15 @@ def load(folder):
         raise ValueError(f"cannot read {path}: {error.strerror or error}") from None
     except (ValueError, UnicodeDecodeError) as error:
         raise ValueError(f"{path} is not a strict-JSON report: {error}") from None
-    if not isinstance(report, dict):
-        raise ValueError(f"{path} is not a report (a JSON object)")
+    versions = report.get("versions") if isinstance(report, dict) else None
+    written = versions.get("tripodjax") if isinstance(versions, dict) else None
+    if not isinstance(written, str) or not all(
+        isinstance(report.get(k), t) for k, t in REQUIRED.items()
+    ):
+        raise ValueError(
+            f"{path} is not a tripodjax report.json (written by optimize-joint: it has "
+            f"versions.tripodjax, {', '.join(REQUIRED)})"
+        )
     return report
 
 
@@ -52,12 +66,18 @@ def _flat(table, prefix=""):
     return out
 
 
-def _change(a, b):
-    """(B − A, (B − A)/|A|) for two numbers, NotAvailable where either is not one."""
+def _change(a, b, scale=None):
+    """(B − A, (B − A)/|A|) for two numbers, NotAvailable where either is not one.
+
+    ``scale``: the size against which A is near zero (``NEAR_ZERO``); max(|A|, |B|) when None.
+    """
     if not (isinstance(a, float) and isinstance(b, float)):
         reason = a if isinstance(a, NotAvailable) else b if isinstance(b, NotAvailable) else None
         return (NotAvailable(str(reason) if reason else "not a number"),) * 2
-    return b - a, ((b - a) / abs(a) if a != 0 else NotAvailable("A is zero"))
+    scale = max(abs(a), abs(b)) if scale is None else scale
+    if a == 0 or abs(a) < NEAR_ZERO * scale:
+        return b - a, NotAvailable(f"A is near 0 (|A| < {NEAR_ZERO:g} of its scale); see B − A")
+    return b - a, (b - a) / abs(a)
 
 
 def _rows(a, b, keys):
@@ -66,6 +86,11 @@ def _rows(a, b, keys):
         va, vb = cell(_pick(a, key)), cell(_pick(b, key))
         rows.append((key, unit, va, vb, *_change(va, vb)))
     return rows
+
+
+def _design_unit(key):
+    """The unit of a design key of a report: its suffix (R_mm, gamma0_deg), else – (conformity)."""
+    return next((u for u in ("mm", "deg") if key.endswith(f"_{u}")), "–")
 
 
 def _pick(report, path):
@@ -91,7 +116,7 @@ def comparison(a, b):
         vb = cell(_pick(b, f"constraints/{name}/margin"))
         limit_a = cell(_pick(a, f"constraints/{name}/limit"))
         limit_b = cell(_pick(b, f"constraints/{name}/limit"))
-        margins.append((name, va, vb, *_change(va, vb), limit_a, limit_b))
+        margins.append((name, va, vb, *_change(va, vb, scale=1.0), limit_a, limit_b))
     spec_a, spec_b = _flat(a.get("spec")), _flat(b.get("spec"))
     differ = [
         (key, spec_a.get(key, NotAvailable("not set")), spec_b.get(key, NotAvailable("not set")))
@@ -99,7 +124,7 @@ def comparison(a, b):
         if spec_a.get(key, KeyError) != spec_b.get(key, KeyError)
     ]
     return {
-        "design": _rows(a, b, [(f"design/{k}", "") for k in design]),
+        "design": _rows(a, b, [(f"design/{k}", _design_unit(k)) for k in design]),
         "objective": _rows(a, b, [("objective", "–")]),
         "margins": margins,
         "quantities": _rows(a, b, [(f"quantities/{q}", units.get(q, "")) for q in quantities]),
@@ -152,7 +177,10 @@ def main(argv=None):
             "Set two optimize-joint reports side by side: designs, objectives, each requirement's "
             "margin and each quantity with the change from A to B, and the spec keys that differ."
         ),
-        epilog="Exit status: 0 written; 2 a folder without a readable report.json; 3 the page could not be written.",
+        epilog=(
+            "Exit status: 0 written; 2 a folder without a readable report.json of optimize-joint; "
+            "3 the page could not be written."
+        ),
     )
     parser.add_argument("dir_a", metavar="DIR_A", help="output folder of the first run (A)")
     parser.add_argument("dir_b", metavar="DIR_B", help="output folder of the second run (B)")

@@ -5,7 +5,8 @@ At the optimum x* with multipliers λ* the KKT conditions of the active set hold
     ∇ₓf − Σ_{i∈A} λ_i ∇ₓc_i = 0   (free variables off their bounds),   c_A(x) = offset,
 
 and the implicit function theorem on them gives dx*/dp and dλ*/dp for every
-number p of the spec (the solution is differentiated, not the iterations):
+number p of the spec's model sections (the solution is differentiated, not the
+iterations; the ``[uncertainty]`` section's distribution parameters are not among them):
 
     [ H   −J_Aᵀ ] [dx/dp]     [ ∂ₚ∇ₓL ]
     [ J_A   0   ] [dλ/dp] = − [ ∂ₚc_A  ],     L = f − λ·c,
@@ -45,7 +46,10 @@ SWITCH_STEP = 0.01  # relative change of an input within which a switch withhold
 SWITCH_REPORTED = 1.0  # switch distances up to this relative change are reported
 MAX_CONDITION = 1e12  # a KKT matrix worse than this is singular: a free variable has no effect
 REVERSE_FROM = 64  # list entries from which one reverse pass is cheaper than differences
-SKIPPED = ("bounds", "solver")  # sections that are not inputs of the model
+# Sections that are not numbers of the model: the bounds, the solver's settings, and the
+# [uncertainty] tables (distribution parameters and a correlation matrix, which enter only the
+# chance constraints' margins; their derivatives are not given).
+SKIPPED = ("bounds", "solver", "uncertainty")
 
 
 def _inputs(structure, values):

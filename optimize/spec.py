@@ -221,6 +221,11 @@ INTEGER_LIMITS = {
 WORK_KEYS = ("n_theta", "starts", "max_outer", "inner_steps")
 MAX_WORK = 1.5e6
 MAX_LIST_LENGTH = 1000
+# Text in a spec: a key or a text value (a name, a choice) is a label of the report's tables and
+# figures, at most MAX_TEXT_LENGTH characters; a file path (PATH_KEYS) at most Linux's PATH_MAX.
+MAX_TEXT_LENGTH = 80
+MAX_PATH_LENGTH = 4096
+PATH_KEYS = ("life.spectrum_file",)
 # Legacy keys that keep working (old name → new name).
 LEGACY_OBJECTIVE = {
     "w_gaf": "w_gaf_rms",
@@ -350,7 +355,7 @@ class Spec:
         through the same rules. Sections are any mappings; a number is any real scalar (Python,
         NumPy, a 0-d JAX array), a list any sequence or 1-D array of them.
         """
-        given = _sources(_legacy(_plain(sections)), None)
+        given = _given(_plain(sections), None)
         return _check(_merge(self.resolved, given))
 
 
@@ -380,6 +385,32 @@ def _plain(value):
         if array.dtype.kind in "biuf" and array.ndim <= 1:
             return array.tolist()
     return value
+
+
+def _bounded_text(table, path=()):
+    """Refuse a key or a text of ``table`` longer than allowed, before a message repeats it."""
+    where = ".".join(map(str, path))
+    if isinstance(table, dict):
+        for key, value in table.items():
+            if isinstance(key, str) and len(key) > MAX_TEXT_LENGTH:
+                raise SpecError(
+                    f"the key {key[:20]!r}… in {where or 'the spec'} is {len(key)} characters "
+                    f"long; at most {MAX_TEXT_LENGTH} allowed"
+                )
+            _bounded_text(value, path + (key,))
+    elif isinstance(table, list):
+        for i, value in enumerate(table):
+            _bounded_text(value, path[:-1] + (f"{path[-1]}[{i}]",))
+    elif isinstance(table, str):
+        limit = MAX_PATH_LENGTH if where in PATH_KEYS else MAX_TEXT_LENGTH
+        if len(table) > limit:
+            raise SpecError(f"{where} is {len(table)} characters long; at most {limit} allowed")
+    return table
+
+
+def _given(given, base):
+    """A file's (or ``replace_values``') table, checked for its texts, renamed, with its sources."""
+    return _sources(_legacy(_bounded_text(given)), base)
 
 
 def _real(where, value):
@@ -474,7 +505,7 @@ def _merge(default, override, path=()):
     """Deep-merge ``override`` into ``default``, rejecting keys the default does not know."""
     merged = copy.deepcopy(default)
     for key, value in override.items():
-        where = ".".join(path + (key,))
+        where = ".".join(map(str, path + (key,)))
         section = path[0] if path else None
         if (
             key not in default
@@ -973,7 +1004,7 @@ def parse_spec(text: str, source: str = "spec", base: str | os.PathLike | None =
         raise SpecError(f"{source} is not valid TOML: {error}") from None
     except ValueError as error:  # e.g. an integer of more than 4300 digits
         raise SpecError(f"{source} is not valid TOML: {error}") from None
-    return _check(_merge(tomllib.loads(DEFAULT_SPEC_TOML), _sources(_legacy(given), base)))
+    return _check(_merge(tomllib.loads(DEFAULT_SPEC_TOML), _given(given, base)))
 
 
 def load_spec(path: str | os.PathLike | None = None) -> Spec:

@@ -87,14 +87,28 @@ def _is_number(value):
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
-def _entries(table, prefix=()):
-    """(path, entry) for every distribution of the section (dotted keys are nested tables)."""
+def _entries(table, variables, prefix=()):
+    """(path, entry) for every distribution of the section.
+
+    A dotted key is a nested table (``hertz.P_d = {…}``) or one quoted key
+    (``"hertz.P_d" = {…}``): both give the path (hertz, P_d). A table is a nested one
+    when it is not a design variable's entry, holds no ``distribution`` and holds only
+    tables; any other value is an entry (one without ``distribution`` is refused by
+    ``parse``, naming that key).
+    """
     for key, value in table.items():
-        path = prefix + (key,)
+        path = prefix + tuple(key.split("."))
         if not prefix and key == "correlation":
             continue
-        if isinstance(value, dict) and "distribution" not in value:
-            yield from _entries(value, path)
+        nested = (
+            isinstance(value, dict)
+            and value
+            and "distribution" not in value
+            and all(isinstance(v, dict) for v in value.values())
+            and path not in {(v,) for v in variables}
+        )
+        if nested:
+            yield from _entries(value, variables, path)
         else:
             yield path, value
 
@@ -143,16 +157,21 @@ def parse(table, values, variables, free):
     ``VARIABLES``, ``free`` the free design variables. Raises SpecError on a bad entry.
     """
     inputs, numbers, seen = [], {}, {}
-    for path, entry in _entries(table):
+    for path, entry in _entries(table, variables):
         where = "uncertainty." + ".".join(path)
         section, key, variable, degrees = _locate(path, values, variables)
         if (section, key) in seen:
-            raise _error(
-                f"{where} repeats {seen[(section, key)]}: give one distribution per number"
-            )
+            first = seen[(section, key)]
+            again = "is given twice (quoted and not)" if first == where else f"repeats {first}"
+            raise _error(f"{where} {again}: give one distribution per number")
         if not isinstance(entry, dict):
             raise _error(
                 f'{where} = {entry!r} must be a table, e.g. {{ distribution = "normal", sd = 0.01 }}'
+            )
+        if "distribution" not in entry:
+            raise _error(
+                f"{where} has no distribution key; give distribution = one of "
+                f'{", ".join(map(repr, KINDS))}, e.g. {{ distribution = "normal", sd = 0.01 }}'
             )
         kind = entry["distribution"]
         if kind not in KINDS:
@@ -257,6 +276,7 @@ def _correlation(triples, names):
     if not isinstance(triples, list) or not triples:
         raise _error(f"{where} = {triples!r} must be a non-empty list of [key_a, key_b, ρ] triples")
     matrix = np.eye(len(names))
+    given = {}  # each pair once, in either order
     for i, triple in enumerate(triples):
         ok = isinstance(triple, list) and len(triple) == 3 and _is_number(triple[2])
         if not ok or triple[0] not in names or triple[1] not in names or triple[0] == triple[1]:
@@ -267,6 +287,13 @@ def _correlation(triples, names):
         rho = float(triple[2])
         if not -1.0 < rho < 1.0:
             raise _error(f"{where}[{i}] ρ = {rho!r} is not allowed: −1 < ρ < 1")
+        pair = frozenset(triple[:2])
+        if pair in given:
+            raise _error(
+                f"{where}[{i}] = {triple!r} gives the pair of {where}[{given[pair]}] again; "
+                "give each pair once"
+            )
+        given[pair] = i
         a, b = names.index(triple[0]), names.index(triple[1])
         matrix[a, b] = matrix[b, a] = rho
     if np.min(np.linalg.eigvalsh(matrix)) <= 1e-10:

@@ -85,9 +85,16 @@ def test_compare_bad_folders_exit_2_with_one_line(tmp_path, runs):
     _, (a, _) = runs
     (tmp_path / "broken").mkdir()
     (tmp_path / "broken" / "report.json").write_text('{"objective": NaN}')
+    # Another program's JSON object, even one with a converged flag, and a JSON list.
+    (tmp_path / "foreign").mkdir()
+    (tmp_path / "foreign" / "report.json").write_text('{"name": "other", "converged": true}')
+    (tmp_path / "list").mkdir()
+    (tmp_path / "list" / "report.json").write_text("[1, 2]")
     for args, fragment in (
         ([str(a), str(tmp_path / "none")], "cannot read"),
         ([str(a), str(tmp_path / "broken")], "not a strict-JSON report"),
+        ([str(tmp_path / "foreign"), str(a)], "not a tripodjax report.json"),
+        ([str(a), str(tmp_path / "list")], "not a tripodjax report.json"),
         ([str(a)], "DIR_B"),
     ):
         done = run_cli("compare", *args, "--out", str(tmp_path / "page.html"))
@@ -104,3 +111,41 @@ def test_compare_of_reports_with_missing_parts_says_not_available(runs):
     html = compare.render(report_a, other)
     assert "written by tripodjax 0.0.1" in html
     assert "not available" in html and "null in the report" in html
+
+
+def test_units_and_relative_changes_of_near_zero_numbers():
+    """Every design row has its unit; a relative change is given only where A is not zero on
+    its scale (1 for a margin, a log ratio; max(|A|, |B|) otherwise): an active constraint's
+    margin of a few tolerances moving by another few is noise in relative terms."""
+    versions = {"versions": {"tripodjax": "x"}, "converged": True}
+    a = {
+        **versions,
+        "design": {"R_mm": 25.0, "gamma0_deg": 20.0, "conformity": 1.002},
+        "constraints": {"life": {"margin": 2.0e-5}, "max_R_over_d": {"margin": 0.25}},
+        "quantities": {"eccentricity": 1e-9},
+        "units": {"eccentricity": "mm"},
+    }
+    b = {
+        **versions,
+        "design": {"R_mm": 26.0, "gamma0_deg": 20.0, "conformity": 1.004},
+        "constraints": {"life": {"margin": 3.0e-5}, "max_R_over_d": {"margin": 0.2}},
+        "quantities": {"eccentricity": 0.5},
+        "units": {"eccentricity": "mm"},
+    }
+    rows = compare.comparison(a, b)
+    units = {key.split("/")[-1]: unit for key, unit, *_ in rows["design"]}
+    assert units == {"R_mm": "mm", "gamma0_deg": "deg", "conformity": "–"}
+    (_, _, _, _, change, relative), *_ = rows["design"]
+    assert (change, relative) == (1.0, 1.0 / 25.0)
+    margins = {name: (change, relative) for name, _, _, change, relative, _, _ in rows["margins"]}
+    assert margins["life"][0] == pytest.approx(1.0e-5, rel=1e-12)
+    assert isinstance(margins["life"][1], compare.NotAvailable)  # not +50 %
+    assert margins["max_R_over_d"][1] == pytest.approx(-0.2, rel=1e-12)
+    (_, unit, _, _, change, relative), *_ = rows["quantities"]
+    assert unit == "mm" and change == pytest.approx(0.5)
+    assert isinstance(relative, compare.NotAvailable)  # 1e-9 is 0 next to 0.5
+    html = compare.render(a, b)
+    design = html.split('data-table="design"')[1].split("</table>")[0]
+    assert "<td>R_mm</td><td>mm</td>" in design and "<td>conformity</td><td>–</td>" in design
+    margins_html = html.split('data-table="margins"')[1].split("</table>")[0]
+    assert "near 0" in margins_html

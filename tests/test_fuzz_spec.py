@@ -302,9 +302,46 @@ def test_parse_and_load_name_an_argument_of_the_wrong_type(call, name):
 
 
 @pytest.mark.parametrize(
-    "sections", [{"loads": 5}, {"loads": ["M_max"]}, {"bounds": {"R": {"lo": 1}}}]
+    "sections",
+    [{"loads": 5}, {"loads": ["M_max"]}, {"bounds": {"R": {"lo": 1}}}, {"life": {5: 1.0}}],
 )
 def test_replace_values_with_a_malformed_section_is_one_line(sections):
     with pytest.raises(optimize.SpecError) as info:
         SPEC.replace_values(**sections)
     assert "\n" not in str(info.value)
+
+
+# --------------------------------------------------------------------------- free text
+
+LONG = optimize.spec.MAX_TEXT_LENGTH + 1
+CONDITIONS = '[life.conditions]\nnames = ["a", "b", "c", "d", "{}"]\n'
+
+
+@pytest.mark.parametrize(
+    ("text", "where", "length", "limit"),
+    [
+        (CONDITIONS.format("x" * 10**6), "life.conditions.names[4]", 10**6, "80"),
+        ('[vehicle.modes]\nnames = ["a", "b", "{}"]\n'.format("m" * LONG), "names[2]", LONG, "80"),
+        ('[friction]\ngrease = "{}"\n'.format("g" * LONG), "friction.grease", LONG, "80"),
+        ('[uncertainty]\n"{}" = 1\n'.format("k" * LONG), "in uncertainty", LONG, "80"),
+        ('[life]\nspectrum_file = "{}"\n'.format("p" * 5000), "life.spectrum_file", 5000, "4096"),
+    ],
+)
+def test_texts_longer_than_their_limit_are_one_line_at_load(tmp_path, text, where, length, limit):
+    """Names are labels of the report's figures (a 1 MB one took 100 s to draw): refused at load,
+    the message naming the key, the length and the limit, not repeating the text."""
+    path = tmp_path / "spec.toml"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(optimize.SpecError) as info:
+        optimize.load_spec(path)
+    message = str(info.value)
+    assert "\n" not in message and len(message) < 200
+    assert where in message and f"{length} characters" in message and f"at most {limit}" in message
+
+
+def test_texts_at_their_limit_are_accepted_and_replace_values_is_bounded_too():
+    name = "n" * optimize.spec.MAX_TEXT_LENGTH
+    spec = optimize.parse_spec(CONDITIONS.format(name))
+    assert spec.structure.condition_names[4] == name
+    with pytest.raises(optimize.SpecError, match=r"names\[0\] is 81 characters long; at most 80"):
+        SPEC.replace_values(life={"conditions": {"names": [name + "n"] + ["a"] * 4}})

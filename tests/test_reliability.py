@@ -71,6 +71,17 @@ def row(result, name):
             'R = { distribution = "normal", sd = 0.01 }\ncorrelation = [["R", "l", 0.2]]',
             ("uncertainty.correlation[0]", "'l'"),
         ),
+        (
+            'R = { distribution = "normal", sd = 0.01 }\n'
+            'd_roller = { distribution = "normal", sd = 0.01 }\n'
+            'correlation = [["R", "d_roller", 0.3], ["d_roller", "R", -0.3]]',
+            ("uncertainty.correlation[1]", "uncertainty.correlation[0]", "each pair once"),
+        ),
+        (
+            'hertz.P_d = { distribution = "normal", cov = 0.05 }\n'
+            '"hertz.P_d" = { distribution = "normal", cov = 0.05 }',
+            ("uncertainty.hertz.P_d", "twice"),
+        ),
     ],
 )
 def test_bad_uncertainty_is_one_line_naming_key_and_value(text, names):
@@ -80,6 +91,36 @@ def test_bad_uncertainty_is_one_line_naming_key_and_value(text, names):
     assert "\n" not in message
     for name in names:
         assert name in message
+
+
+@pytest.mark.parametrize(
+    ("text", "where"),
+    [
+        ("R = { sd = 0.01 }", "uncertainty.R"),
+        ("d_roller = {}", "uncertainty.d_roller"),
+        ("hertz.P_d = { cov = 0.05 }", "uncertainty.hertz.P_d"),
+        ('"hertz.P_d" = { cov = 0.05 }', "uncertainty.hertz.P_d"),
+        ("hertz = { P_d = { cov = 0.05 } }", "uncertainty.hertz.P_d"),
+    ],
+)
+def test_an_entry_without_a_distribution_says_so(text, where):
+    """Not "unknown key uncertainty.R.sd": the entry's distribution key is missing."""
+    with pytest.raises(optimize.SpecError) as error:
+        optimize.parse_spec("[uncertainty]\n" + text)
+    message = str(error.value)
+    assert message.startswith(f"{where} has no distribution key") and "\n" not in message
+    assert all(repr(kind) in message for kind in uncertainty.KINDS)
+
+
+def test_a_quoted_dotted_key_is_the_nested_one():
+    """The form the messages suggest, section.key, is accepted quoted as well."""
+    entry = '{ distribution = "normal", cov = 0.05 }'
+    quoted = optimize.parse_spec(f'[uncertainty]\n"hertz.P_d" = {entry}\n')
+    nested = optimize.parse_spec(f"[uncertainty]\nhertz.P_d = {entry}\n")
+    assert quoted.structure == nested.structure
+    assert quoted.values["uncertainty"] == nested.values["uncertainty"]
+    (one,) = quoted.structure.uncertainty
+    assert (one.name, one.section, one.key) == ("hertz.P_d", "hertz", "P_d")
 
 
 @pytest.mark.parametrize(
@@ -529,6 +570,41 @@ def test_cli_reliability_table_with_the_default_tolerances(tmp_path):
         lo, hi = r["mc_interval_95"]
         assert lo <= r["probability_mc"] <= hi
     assert (out / "importance.png").stat().st_size > 0
+
+
+@pytest.mark.parametrize(
+    ("extra", "flags"),
+    [("", ()), ("[constraints]\nmax_failure_probability_life = 1e-3\n", ("--reliability",))],
+    ids=["own-uncertainty", "chance-constraint-and-flag"],
+)
+def test_cli_spec_with_its_own_uncertainty(tmp_path, extra, flags):
+    """A spec's own [uncertainty] (issue 36: a TypeError after the solve, exit 1, no report):
+    exit 0 and its reliability table, with a chance constraint and --reliability too. The
+    sensitivities are derivatives w.r.t. the model's numbers, none of the uncertainty tables."""
+    from reference import reference_default_design
+    from test_optimize_cli import run_cli, strict_json
+
+    spec, out = tmp_path / "spec.toml", tmp_path / "report"
+    spec.write_text(TOLERANCES + extra, encoding="utf-8")
+    result = run_cli(str(spec), *flags, "--out", str(out), "--progress", "off")
+    assert result.returncode == 0, result.stderr
+    report = strict_json(out / "report.json")
+    table = report["reliability"]
+    assert table["tolerances"] == "spec"
+    assert set(table["inputs"]) == {"R", "d_roller", "conformity", "hertz.P_d"}
+    assert (out / "importance.png").stat().st_size > 0
+    assert report["sensitivities"] and not any(
+        k.startswith("uncertainty") for k in report["sensitivities"]
+    )
+    assert report["spec"]["uncertainty"]["hertz"]["P_d"]["distribution"] == "normal"
+    life = row(table, "life")
+    if extra:  # the chance constraint is active: FORM's β at the design is −Φ⁻¹(1e-3)
+        assert report["multipliers"]["max_failure_probability_life"] > 0
+        assert life["beta_form"] == pytest.approx(-stats.norm.ppf(1e-3), rel=0.01)
+    else:  # the tolerances alone change no deterministic number: the workbook chain's design
+        R, d = reference_default_design()
+        assert report["design"]["R_mm"] == pytest.approx(R, rel=2e-3)
+        assert report["design"]["d_roller_mm"] == pytest.approx(d, rel=2e-3)
 
 
 def test_reliability_index_and_probability_forms_are_one_constraint():
