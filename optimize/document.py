@@ -941,7 +941,9 @@ def write_report(
 
     Args:
         result: the solved design (``result.sensitivities`` filled in for the sensitivity table).
-        spec: its [`Spec`][tripodjax.optimize.Spec].
+        spec: its [`Spec`][tripodjax.optimize.Spec]: the one it was solved for (``TypeError``
+            for ``None`` or another spec's Result, ``ValueError`` for a spec of other numbers;
+            nothing is written).
         out_dir: the folder (created when absent).
         formats: any of ``"json"``, ``"html"``, ``"xlsx"``.
         pareto, catalogue, choice, full_fidelity: as ``optimize-joint`` computes them (optional).

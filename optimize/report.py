@@ -1,7 +1,7 @@
 """The report of an optimisation: strict JSON and PNG plots, written atomically.
 
 The figures are laid out by Matplotlib's constrained layout (every label inside the
-figure; about 0.1 s a figure); text from the spec (names of working conditions, modes,
+figure; a fraction of a second a figure); text from the spec (names of working conditions, modes,
 inputs) is shortened to `LABEL_CHARS` characters with an ellipsis when drawn, so a long
 name costs no time and covers nothing.
 
