@@ -27,7 +27,7 @@ import sys
 
 XLSX_EXTRA = 'pip install "tripodjax[report]"'
 FORMATS = ("json", "html", "xlsx")
-SENSITIVITY_ROWS = 12  # the largest sensitivities listed (by |elasticity of the objective|)
+SENSITIVITY_ROWS = 12  # the largest sensitivities listed: the rows of the sensitivity chart
 # Units of spec keys whose comment in the embedded spec does not carry one.
 _LIST_UNITS = {
     "life.torque": "N·m",
@@ -473,25 +473,27 @@ def _sensitivities(report):
         raise NotAvailable("the report lists no sensitivities")
     from tripodjax.optimize.spec import VARIABLES
 
+    elasticities = report.get("elasticities")
+    if elasticities is None:
+        raise NotAvailable(
+            "the report has no elasticities (written by an earlier version): the inputs that "
+            "matter most cannot be ranked"
+        )
+    from tripodjax.optimize.report import ranked_sensitivities
+    from tripodjax.optimize.sensitivity import SWITCH_REPORTED
+
     outputs = list(next(iter(derivatives.values())))
     spec = report.get("spec") or {}
-
-    def elasticity(key):
-        try:
-            p = _spec_value(spec, key) - (1.0 if key == "hertz.conformity" else 0.0)
-            return p * number(derivatives[key]["objective"]) / number(report["objective"])
-        except (KeyError, IndexError, TypeError, ValueError, NotAvailable):
-            return NotAvailable("the spec value is not in the report")
-
-    ranked = sorted(
-        derivatives,
-        key=lambda k: -abs(e) if isinstance(e := elasticity(k), float) else 0.0,
-    )[:SENSITIVITY_ROWS]
+    # The ranking of the sensitivity chart (figure_tornado): one rule, the same rows.
+    ranked = ranked_sensitivities({k: elasticities[k] for k in derivatives}, SENSITIVITY_ROWS)
     columns = [Column("spec key", kind="text"), Column("unit", kind="text"), Column("value")]
     for out in outputs:
         unit = "–" if out == "objective" else VARIABLES.get(out, ("", "", "–"))[2]
         columns.append(Column(f"d {out} / d p", f"{unit} per unit of p"))
-    columns.append(Column("elasticity of the objective", "–"))
+    columns += [
+        Column("elasticity of the objective" if out == "objective" else f"elasticity of {out}", "–")
+        for out in outputs
+    ]
     rows = []
     for key in ranked:
         try:
@@ -504,24 +506,33 @@ def _sensitivities(report):
                 spec_unit(key),
                 value,
                 *(cell(derivatives[key].get(o)) for o in outputs),
-                elasticity(key),
+                *(cell(elasticities[key].get(o)) for o in outputs),
             ]
         )
+    step = notes_in.get("switch_step")
+    switches = sum(len(v) for v in (notes_in.get("switch_distance") or {}).values())
     notes = [
-        f"The {len(rows)} largest of {len(derivatives)} by |elasticity of the objective| "
-        "((p/objective)·d objective/dp; for the conformity Ψ, p is Ψ − 1). Derivatives per unit of the spec key's own unit.",
+        f"The {len(rows)} largest of {len(derivatives)} by |elasticity| (p/y)·dy/dp, the "
+        "largest of the objective's and the free variables' (for the conformity Ψ, p is "
+        "Ψ − 1): the rows of the sensitivity chart. Derivatives per unit of the spec key's "
+        "own unit.",
         "Active constraints: "
         + (", ".join(notes_in.get("active") or []) or "none")
         + "; variables on a bound: "
         + (", ".join(notes_in.get("on_bound") or []) or "none")
-        + "; near a switch: "
+        + f"; switching within a relative change of {fmt(cell(step), 3)} (derivatives "
+        "withheld): "
         + (", ".join(notes_in.get("near_switch") or []) or "none")
+        + f"; switches within a relative change of {SWITCH_REPORTED:g}: {switches} (the "
+        "near-switch notes)"
         + f"; KKT condition number {fmt(cell(notes_in.get('condition_number')), 3)}.",
     ]
     return Table("sensitivities", "Sensitivities", columns, rows, notes)
 
 
 def _switch(report):
+    from tripodjax.optimize.sensitivity import SWITCH_REPORTED
+
     notes = report.get("sensitivity_notes") or {}
     distance = notes.get("switch_distance")
     if distance is None:
@@ -542,9 +553,13 @@ def _switch(report):
         columns,
         rows,
         notes=[
-            f"Relative change tested: {fmt(cell(step), 3)}."
-            if step is not None
-            else "Relative change tested: not given."
+            f"{len(rows)} switches: the relative change of an input at which, linearised, a "
+            f"constraint or bound switches (active ↔ inactive), up to {SWITCH_REPORTED:g}. "
+            "Within "
+            + (fmt(cell(step), 3) if step is not None else "the tested change (not given)")
+            + " the input's derivatives are withheld (near a switch: "
+            + (", ".join(notes.get("near_switch") or []) or "none")
+            + ")."
         ],
     )
 
@@ -595,10 +610,11 @@ def _pareto(report):
     if not front:
         raise NotAvailable("the objective has no GAF term: no Pareto front was swept")
     free = report.get("free_variables") or []
+    from tripodjax.optimize.report import SAME_DESIGN
     from tripodjax.optimize.spec import REPORT_KEYS, VARIABLES
 
     keys = [REPORT_KEYS.get(v, v) for v in free]
-    columns = [Column("w_gaf_rms", "–")]
+    columns = [Column("w_gaf_rms", "–"), Column("weights giving this design", kind="text")]
     columns += [
         Column(k.removesuffix(f"_{VARIABLES[v][2]}"), VARIABLES[v][2])
         for v, k in zip(free, keys, strict=True)
@@ -612,6 +628,7 @@ def _pareto(report):
     rows = [
         [
             cell(p.get("w_gaf_rms")),
+            ", ".join(f"{w:g}" for w in p.get("same_design_w_gaf_rms") or [p.get("w_gaf_rms")]),
             *(cell(p.get(k)) for k in keys),
             cell(p.get("gaf_rms_N")),
             cell(p.get("outer_diameter_mm")),
@@ -620,7 +637,12 @@ def _pareto(report):
         ]
         for p in front
     ]
-    return Table("pareto_front", "Pareto front", columns, rows)
+    weights = sum(len(p.get("same_design_w_gaf_rms") or [0]) for p in front)
+    note = (
+        f"{weights} weights swept, {len(front)} distinct designs: weights whose designs agree "
+        f"within a relative {SAME_DESIGN:g} are one design, listed once."
+    )
+    return Table("pareto_front", "Pareto front", columns, rows, [note])
 
 
 def _history(report):
@@ -919,7 +941,9 @@ def write_report(
 
     Args:
         result: the solved design (``result.sensitivities`` filled in for the sensitivity table).
-        spec: its [`Spec`][tripodjax.optimize.Spec].
+        spec: its [`Spec`][tripodjax.optimize.Spec]: the one it was solved for (``TypeError``
+            for ``None`` or another spec's Result, ``ValueError`` for a spec of other numbers;
+            nothing is written).
         out_dir: the folder (created when absent).
         formats: any of ``"json"``, ``"html"``, ``"xlsx"``.
         pareto, catalogue, choice, full_fidelity: as ``optimize-joint`` computes them (optional).

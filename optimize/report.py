@@ -1,12 +1,15 @@
 """The report of an optimisation: strict JSON and PNG plots, written atomically.
 
-The figures use fixed margins rather than ``tight_layout`` (which cost as much as the
-rest of a warm run together).
+The figures are laid out by Matplotlib's constrained layout (every label inside the
+figure; a fraction of a second a figure); text from the spec (names of working conditions, modes,
+inputs) is shortened to `LABEL_CHARS` characters with an ellipsis when drawn, so a long
+name costs no time and covers nothing.
 
 Plots draw on ``matplotlib.figure.Figure`` objects (no pyplot state, no backend
 switch): importing this module changes nothing in the process.
 """
 
+import dataclasses
 import io
 import json
 import math
@@ -52,8 +55,93 @@ def strict(value, path="", notes=None):
     return value
 
 
+LABEL_CHARS = 40  # the most characters of a name drawn on a figure (an ellipsis beyond)
+SAME_DESIGN = 1e-4  # Pareto members whose free variables agree to this relative change: one design
+
+
+def label(text, chars=LABEL_CHARS):
+    """``text`` as drawn on a figure: at most ``chars`` characters, one line, … when shortened."""
+    text = " ".join(str(text)[: 4 * chars].split())
+    return text if len(text) <= chars else text[: chars - 1] + "…"
+
+
+def pareto_groups(pareto):
+    """The Pareto front ``[(w_gaf_rms, Result)]`` as ``[(weights, Result)]``, one per design.
+
+    Weights whose designs agree within `SAME_DESIGN` (relative, on every free variable) are
+    one design (the GAF term too weak to move it): listed once, with every weight that gave it.
+    """
+    groups = []
+    for w, r in pareto:
+        for weights, first in groups:
+            same = all(
+                abs(r.design[k] - first.design[k]) <= SAME_DESIGN * max(1.0, abs(first.design[k]))
+                for k in first.design
+            )
+            if same:
+                weights.append(w)
+                break
+        else:
+            groups.append(([w], r))
+    return groups
+
+
+def ranked_sensitivities(elasticities, count):
+    """The ``count`` inputs of largest |elasticity| (the largest over the objective and the
+    free variables), largest first: the one ranking of the sensitivity table and chart."""
+
+    def size(key):
+        return max(
+            (abs(v) for v in elasticities[key].values() if v is not None and v == v), default=0.0
+        )
+
+    return sorted(elasticities, key=lambda key: -size(key))[:count]
+
+
 def design_keys(design):
     return {REPORT_KEYS[k]: v for k, v in design.items()}
+
+
+def check_pairing(result, spec):
+    """``result`` is the Result of ``spec``: its structure (`check_result`) and, when the
+    Result carries them, the very numbers it was solved for. A report pairs one design with
+    one spec; another spec's numbers beside it would be a report of a design never solved."""
+    import jax
+
+    from tripodjax.optimize.problem import check_result
+
+    check_result(spec, result)
+    if result.values is None:  # a Result built by hand: only its variables and constraints
+        return
+    if result.structure != spec.structure:
+        differ = [
+            f.name
+            for f in dataclasses.fields(spec.structure)
+            if getattr(result.structure, f.name) != getattr(spec.structure, f.name)
+        ]
+        raise TypeError(
+            f"result is the Result of another spec (its {', '.join(differ)} differ); "
+            "allowed: the Result of solve(spec) for this spec"
+        )
+    solved = jax.tree_util.tree_flatten_with_path(result.values)
+    given = jax.tree_util.tree_flatten_with_path(spec.values)
+    if solved[1] != given[1]:
+        raise ValueError(
+            "result is the Result of another spec (other sections or keys); allowed: the "
+            "Result of solve(spec) for this spec"
+        )
+    for (path, a), (_, b) in zip(solved[0], given[0], strict=True):
+        if not np.array_equal(np.asarray(a), np.asarray(b), equal_nan=True):
+            key = ".".join(str(getattr(k, "key", k)) for k in path)
+            raise ValueError(
+                f"result is the Result of another spec: {key} = {_short(a)} there, "
+                f"{_short(b)} in this spec; allowed: the Result of solve(spec) for this spec"
+            )
+
+
+def _short(value):
+    text = " ".join(np.array2string(np.asarray(value), threshold=6, precision=6).split())
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def report_dict(
@@ -71,8 +159,10 @@ def report_dict(
     """Everything a reader needs: design, status, constraints, sensitivities, catalogue, spec.
 
     ``reliability``: the [`reliability`][tripodjax.optimize.reliability] answer at the
-    design, written as the report's ``reliability`` section when given.
+    design, written as the report's ``reliability`` section when given. ``result`` must be
+    the Result of ``spec`` (`check_pairing`).
     """
+    check_pairing(result, spec)
     report = {
         "design": design_keys(result.design),
         "free_variables": list(spec.structure.free),
@@ -101,6 +191,7 @@ def report_dict(
         report["life"] = life
     if result.sensitivities is not None:
         sens = result.sensitivities
+        report["elasticities"] = sens["elasticities"]
         keys = ("active", "on_bound", "near_switch", "withheld", "switch_distance", "switch_step")
         notes = {k: sens[k] for k in (*keys, "condition_number", "unavailable") if k in sens}
         # An input with a switch within switch_step has no derivative (it would hold on one
@@ -112,14 +203,15 @@ def report_dict(
         report["catalogue_choice"] = choice
     report["pareto_front"] = [
         {
-            "w_gaf_rms": w,
+            "w_gaf_rms": weights[0],
+            "same_design_w_gaf_rms": weights,
             **design_keys(r.design),
             "gaf_rms_N": r.quantities.get("gaf_rms"),
             "outer_diameter_mm": r.quantities.get("outer_diameter"),
             "irregularity": r.quantities.get("irregularity"),
             "converged": r.converged,
         }
-        for w, r in pareto
+        for weights, r in pareto_groups(pareto)
     ]
     if reliability is not None:
         report["reliability"] = reliability
@@ -136,7 +228,7 @@ def report_dict(
 def _figure(**kw):
     from matplotlib.figure import Figure
 
-    return Figure(**kw)
+    return Figure(layout="constrained", **kw)
 
 
 def figure_convergence(result):
@@ -149,9 +241,11 @@ def figure_convergence(result):
     )
     ax1.semilogy(it, result.history["kkt_residual"], "o-")
     ax1.set(title="KKT residual", xlabel="outer iteration [–]", ylabel="KKT residual [–]")
+    from matplotlib.ticker import MaxNLocator
+
     for ax in (ax0, ax1):
         ax.grid(alpha=0.3, which="both")
-    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.14, top=0.9, wspace=0.25)
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # iterations are whole
     return fig
 
 
@@ -160,42 +254,46 @@ def figure_margins(result):
     ax = fig.subplots()
     names = list(result.constraints)
     margins = [result.constraints[n]["margin"] for n in names]
-    ax.barh(names, margins, color=["C2" if m >= 0 else "C3" for m in margins])
+    ax.barh([label(n) for n in names], margins, color=["C2" if m >= 0 else "C3" for m in margins])
     for y, m in enumerate(margins):
-        label = f"{m:+.2e}" + (" (active)" if abs(m) < 1e-3 else "")
+        text = f"{m:+.2e}" + (" (active)" if abs(m) < 1e-3 else "")
         ax.annotate(
-            label,
+            text,
             (max(m, 0), y),
             xytext=(4, 0),
             textcoords="offset points",
             va="center",
             fontsize=8,
         )
+    # Room right of the longest bar for its number (the layout keeps the axes in the figure,
+    # not an annotation beyond its limits).
+    low, high = min(min(margins), 0.0), max(max(margins), 0.0)
+    ax.set_xlim(low - 0.05 * (high - low), high + 0.3 * (high - low or 1.0))
     ax.axvline(0, color="k", lw=0.8)
     ax.set(
         title="constraint margins at the proposed design (≥ 0: satisfied)",
         xlabel="margin ln(value/limit) [–]",
     )
     ax.grid(alpha=0.3, axis="x")
-    fig.subplots_adjust(left=0.2, right=0.95, bottom=0.14, top=0.9)
     return fig
 
 
 def figure_pareto(result, pareto):
     fig = _figure(figsize=(7, 5))
     ax = fig.subplots()
-    size = [r.quantities["outer_diameter"] for _, r in pareto]
-    gaf = [r.quantities["gaf_rms"] for _, r in pareto]
+    groups = pareto_groups(pareto)  # weights that land on one design: one point, one label
+    size = [r.quantities["outer_diameter"] for _, r in groups]
+    gaf = [r.quantities["gaf_rms"] for _, r in groups]
     ax.plot(size, gaf, "o-", label="Pareto front (GAF weight swept)")
-    labels = {}  # weights that land on the same design share one label
-    for (w, _), s, g in zip(pareto, size, gaf, strict=True):
-        labels.setdefault((round(s, 3), round(g, 1)), []).append(f"{w:g}")
-    for (s, g), ws in labels.items():
+    middle = (min(size) + max(size)) / 2
+    for (weights, _), s, g in zip(groups, size, gaf, strict=True):
+        right = s > middle  # a label toward the middle of the plot, never off its edge
         ax.annotate(
-            "w_gaf_rms = " + ", ".join(ws),
+            "w_gaf_rms = " + ", ".join(f"{w:g}" for w in weights),
             (s, g),
             textcoords="offset points",
-            xytext=(5, 5),
+            xytext=(-6 if right else 6, 6),
+            ha="right" if right else "left",
             fontsize=8,
         )
     ax.plot(
@@ -211,8 +309,8 @@ def figure_pareto(result, pareto):
         ylabel="GAF RMS [N]",
     )
     ax.grid(alpha=0.3)
-    ax.legend()
-    fig.subplots_adjust(left=0.12, right=0.97, bottom=0.11, top=0.93)
+    ax.margins(x=0.08, y=0.1)
+    ax.legend(loc="best")
     return fig
 
 
@@ -220,33 +318,34 @@ def figure_tornado(result, count=12):
     """The largest elasticities of the optimal objective and design (d ln y / d ln p)."""
     el = result.sensitivities["elasticities"]
     outputs = list(next(iter(el.values()))) if el else ["objective"]
-    rows = sorted(
-        el,
-        key=lambda k: -max((abs(v) for v in el[k].values() if v == v), default=0.0),
-    )[:count][::-1]
+    rows = ranked_sensitivities(el, count)[::-1]  # the table's ranking, the largest on top
     fig = _figure(figsize=(9, 0.45 * len(rows) + 1.8))
     ax = fig.subplots()
     height = 0.8 / len(outputs)
-    for j, out in enumerate(outputs):
-        values = [el[k].get(out, 0.0) for k in rows]
-        ax.barh([i + j * height for i in range(len(rows))], values, height=height, label=out)
-    ax.set_yticks([i + 0.4 - height / 2 for i in range(len(rows))], rows, fontsize=8)
+    for i, key in enumerate(rows):
+        # Only the bars that are there, centred on the row's label (a zero draws no bar).
+        values = [el[key].get(out) for out in outputs]
+        drawn = [j for j, v in enumerate(values) if v is not None and v == v and v != 0.0]
+        for m, j in enumerate(drawn):
+            y = i + (m - (len(drawn) - 1) / 2) * height
+            ax.barh(y, values[j], height=height, color=f"C{j % 10}")
+    ax.set_yticks(range(len(rows)), [label(k) for k in rows], fontsize=8)
     ax.axvline(0, color="k", lw=0.8)
     ax.set(
         title="sensitivities of the optimum: elasticities (p/y)·dy/dp",
         xlabel="elasticity [–] (% change of y per % change of p)",
     )
     ax.grid(alpha=0.3, axis="x")
-    ax.legend(fontsize=8)
-    fig.subplots_adjust(
-        left=0.3, right=0.97, bottom=0.6 / fig.get_figheight(), top=1 - 0.45 / fig.get_figheight()
-    )
+    from matplotlib.patches import Patch
+
+    handles = [Patch(color=f"C{j % 10}", label=out) for j, out in enumerate(outputs)]
+    fig.legend(handles=handles, fontsize=8, loc="outside lower center", ncol=len(outputs))
     return fig
 
 
 def figure_catalogue(result, catalogue, choice, landscape=None):
     """Catalogue sizes on the (R, d) plane over the constraint landscape, with the ad hoc optimum."""
-    fig = _figure(figsize=(7, 5.5))
+    fig = _figure(figsize=(7, 6.5))
     ax = fig.subplots()
     if landscape is not None:
         R, d = landscape["R"], landscape["d"]
@@ -266,14 +365,6 @@ def figure_catalogue(result, catalogue, choice, landscape=None):
                     color=color,
                     label=f"{family} {'feasible' if feasible else 'infeasible'}",
                 )
-            for e in pts:
-                ax.annotate(
-                    e["size"],
-                    (e["R_mm"], e["d_roller_mm"]),
-                    xytext=(3, 3),
-                    textcoords="offset points",
-                    fontsize=7,
-                )
     if choice is not None:
         ax.scatter(
             [choice["R_mm"]],
@@ -290,9 +381,78 @@ def figure_catalogue(result, catalogue, choice, landscape=None):
         ylabel="roller diameter d [mm]",
     )
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.subplots_adjust(left=0.11, right=0.97, bottom=0.1, top=0.94)
+    # The legend below the plot, not over its points; the layout is fixed before the labels
+    # are placed (their places are found in display coordinates).
+    fig.legend(fontsize=8, loc="outside lower center", ncol=3)
+    _place_labels(
+        fig,
+        ax,
+        [(e["R_mm"], e["d_roller_mm"]) for e in catalogue],
+        [label(e["size"], 12) for e in catalogue],
+    )
     return fig
+
+
+def _renderer(fig):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = fig.canvas if isinstance(fig.canvas, FigureCanvasAgg) else FigureCanvasAgg(fig)
+    return canvas.get_renderer()
+
+
+# Where a point's label may go, in points from the point: right-up first, then around it.
+LABEL_OFFSETS = ((3, 3), (3, -9), (-3, 3), (-3, -9), (3, 10), (-3, 10), (3, -16), (-3, -16))
+
+
+def _place_labels(fig, ax, points, texts):
+    """Annotate ``points`` with ``texts``, each at the first of `LABEL_OFFSETS` where it overlaps
+    no label placed before it, no marker and stays in the axes (else where it overlaps least)."""
+    fig.draw_without_rendering()  # the constrained layout: the axes' place is final
+    renderer = _renderer(fig)
+    inside = ax.get_window_extent(renderer)
+    centres = ax.transData.transform(points) if len(points) else np.zeros((0, 2))
+    marker = 4.0 * fig.dpi / 72  # half a marker's width [px]
+    placed = []
+    for (x, y), text, centre in zip(points, texts, centres, strict=True):
+        best = None
+        for dx, dy in LABEL_OFFSETS:
+            note = ax.annotate(
+                text,
+                (x, y),
+                xytext=(dx, dy),
+                textcoords="offset points",
+                ha="left" if dx > 0 else "right",
+                fontsize=7,
+            )
+            box = note.get_window_extent(renderer)
+            cost = sum(_overlap(box, other) for other in placed)
+            cost += sum(
+                _overlap(box, _square(c, marker)) for c in centres if not np.array_equal(c, centre)
+            )
+            cost += box.width * box.height - _overlap(box, inside)
+            if best is None or cost < best[0]:
+                if best is not None:
+                    best[1].remove()
+                best = (cost, note, box)
+            else:
+                note.remove()
+            if cost == 0:
+                break
+        placed.append(best[2])
+    fig.set_layout_engine("none")  # the labels were placed for this layout: keep it
+
+
+def _square(centre, half):
+    from matplotlib.transforms import Bbox
+
+    return Bbox.from_extents(centre[0] - half, centre[1] - half, centre[0] + half, centre[1] + half)
+
+
+def _overlap(a, b):
+    """The area [px²] two boxes share."""
+    width = min(a.x1, b.x1) - max(a.x0, b.x0)
+    height = min(a.y1, b.y1) - max(a.y0, b.y0)
+    return max(width, 0.0) * max(height, 0.0)
 
 
 def figure_damage(life):
@@ -314,24 +474,32 @@ def figure_damage(life):
                     for g in gears
                 ]
             )
-            ax0.bar(gears, 100 * share, bottom=100 * bottom, label=mode)
+            ax0.bar(range(len(gears)), 100 * share, bottom=100 * bottom, label=label(mode))
             bottom += share
+        ax0.set_xticks(range(len(gears)), [label(g) for g in gears])
         ax0.legend(fontsize=8)
         ax0.set(title="damage by gear and driving mode", xlabel="gear")
     else:
-        ax0.bar([str(c["case"]) for c in cases], [100 * c["damage_share"] for c in cases])
+        ax0.bar(range(len(cases)), [100 * c["damage_share"] for c in cases])
+        ax0.set_xticks(range(len(cases)), [label(c["case"]) for c in cases])
         ax0.set(title="damage by spectrum case", xlabel="case")
     ax0.set(ylabel="share of the damage [%]")
-    names = [c["name"] for c in life["conditions"]]
-    ax1.bar(names, [100 * c["damage_share"] for c in life["conditions"]], color="C3")
+    conditions = life["conditions"]
+    ax1.bar(range(len(conditions)), [100 * c["damage_share"] for c in conditions], color="C3")
+    ax1.set_xticks(
+        range(len(conditions)),
+        [label(c["name"], 24) for c in conditions],
+        rotation=30,
+        ha="right",
+        rotation_mode="anchor",  # each label ends under its bar
+        fontsize=8,
+    )
     ax1.set(
-        title=f"damage by working condition (life {life['km']:,.0f} km)",
+        title=f"damage by condition (life {life['km']:,.0f} km)",
         ylabel="share of the damage [%]",
     )
-    ax1.tick_params(axis="x", labelrotation=30, labelsize=8)
     for ax in (ax0, ax1):
         ax.grid(alpha=0.3, axis="y")
-    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.22, top=0.9, wspace=0.25)
     return fig
 
 
@@ -344,23 +512,22 @@ def figure_importance(reliability):
     left = np.zeros(len(rows))
     for i, key in enumerate(inputs):
         share = np.array([r["importance"][key] for r in rows])
-        ax.barh(range(len(rows)), share, left=left, color=f"C{i % 10}", label=key)
+        ax.barh(range(len(rows)), share, left=left, color=f"C{i % 10}", label=label(key))
         left += share
     labels = []
     for r in rows:
         beta, p = r.get("beta_form"), r.get("probability_form")
         beta = "β = ∞" if beta is None else f"β = {beta:.2f}"
         note = "" if r.get("form_converged") else ", FORM not converged"
-        labels.append(f"{r['name']}\n{beta}, P = {p:.2g}{note}")
+        labels.append(f"{label(r['name'])}\n{beta}, P = {p:.2g}{note}")
     ax.set_yticks(range(len(rows)), labels, fontsize=8)
     ax.set(
         xlim=(0, 1),
         title="which tolerance matters: FORM importance factors α² per requirement",
         xlabel="share of the variance of the linearised margin at the design point [–]",
     )
-    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=min(4, len(inputs)))
+    fig.legend(fontsize=8, loc="outside lower center", ncol=min(4, len(inputs)))
     ax.grid(alpha=0.3, axis="x")
-    fig.subplots_adjust(left=0.3, right=0.97, bottom=0.32, top=0.9)
     return fig
 
 

@@ -46,7 +46,7 @@ from tripodjax.optimize.problem import (
     objective_and_margins,
     to_spec_units,
 )
-from tripodjax.optimize.spec import REPORT_KEYS, Spec
+from tripodjax.optimize.spec import REPORT_KEYS, Spec, Structure
 from tripodjax.progress import ProgressMeter, resolve
 from tripodjax.results import RESULTS
 
@@ -378,6 +378,9 @@ class Result:
         sensitivities: ``None`` unless asked for: ``solve(spec, sensitivities=True)`` fills it
             with [`sensitivities`][tripodjax.optimize.sensitivities]``(spec, result)`` when the
             solve converged (derivatives of an unfinished point would be wrong).
+        structure, values: the spec's structure and the numbers it was solved for
+            (``spec.values``, or a scenario's): what identifies its spec, e.g. to
+            [`write_report`][tripodjax.optimize.write_report].
     """
 
     design: dict
@@ -397,6 +400,8 @@ class Result:
     fidelity: str
     x: np.ndarray = dataclasses.field(repr=False, default=None)
     sensitivities: dict = None
+    structure: Structure = dataclasses.field(repr=False, default=None, compare=False)
+    values: dict = dataclasses.field(repr=False, default=None, compare=False)
 
 
 def _stack(values_list):
@@ -515,6 +520,8 @@ def _result(structure, values, out):
         starts=starts,
         fidelity=structure.fidelity,
         x=np.asarray(out["x"][best]),
+        structure=structure,
+        values=values,
     )
 
 

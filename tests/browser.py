@@ -6,12 +6,14 @@ and network requests, evaluate an expression, take a screenshot, print to PDF.
 """
 
 import base64
+import fcntl
 import json
 import os
 import select
 import shutil
-import subprocess
+import signal
 import tempfile
+import time
 
 EXECUTABLES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
 
@@ -30,35 +32,39 @@ class Page:
         self._buffer = b""
         self._id = 0
         self._profile = tempfile.mkdtemp(prefix="tripodjax-chromium-")
+        # The browser's ends on 3 and 4, placed by posix_spawn: no fork of this process (a
+        # preexec_fn would fork it, and JAX warns that forking its threads may deadlock).
         to_browser, self._to_browser = os.pipe()
         self._from_browser, from_browser = os.pipe()
-
-        def descriptors():  # in the child: the pipe ends on 3 and 4
-            os.dup2(to_browser, 3)
-            os.dup2(from_browser, 4)
-
-        self._process = subprocess.Popen(
-            [
-                path,
-                "--headless",
-                "--remote-debugging-pipe",
-                "--no-sandbox",  # CI runs as root
-                "--disable-gpu",
-                "--no-first-run",
-                "--no-default-browser-check",
-                "--disable-background-networking",
-                "--disable-component-update",
-                f"--user-data-dir={self._profile}",
-                "about:blank",
+        ends = [fcntl.fcntl(fd, fcntl.F_DUPFD_CLOEXEC, 5) for fd in (to_browser, from_browser)]
+        for fd in (to_browser, from_browser):
+            os.close(fd)
+        arguments = [
+            path,
+            "--headless",
+            "--remote-debugging-pipe",
+            "--no-sandbox",  # CI runs as root
+            "--disable-gpu",
+            "--no-first-run",
+            "--no-default-browser-check",
+            "--disable-background-networking",
+            "--disable-component-update",
+            f"--user-data-dir={self._profile}",
+            "about:blank",
+        ]
+        quiet = [(os.POSIX_SPAWN_OPEN, fd, os.devnull, os.O_RDWR, 0) for fd in (0, 1, 2)]
+        self._pid = os.posix_spawn(
+            path,
+            arguments,
+            os.environ,
+            file_actions=[
+                *quiet,
+                (os.POSIX_SPAWN_DUP2, ends[0], 3),
+                (os.POSIX_SPAWN_DUP2, ends[1], 4),
             ],
-            stdin=subprocess.DEVNULL,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
-            pass_fds=(3, 4),
-            preexec_fn=descriptors,
         )
-        os.close(to_browser)
-        os.close(from_browser)
+        for fd in ends:
+            os.close(fd)
         target = self.send("Target.createTarget", url="about:blank")["targetId"]
         self.session = self.send("Target.attachToTarget", targetId=target, flatten=True)[
             "sessionId"
@@ -177,11 +183,13 @@ class Page:
             self.send("Browser.close")
         except (EOFError, OSError, TimeoutError, RuntimeError):
             pass
-        try:
-            self._process.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            self._process.kill()
-            self._process.wait()
+        deadline = time.monotonic() + 20
+        while os.waitpid(self._pid, os.WNOHANG) == (0, 0):
+            if time.monotonic() > deadline:
+                os.kill(self._pid, signal.SIGKILL)
+                os.waitpid(self._pid, 0)
+                break
+            time.sleep(0.05)
         os.close(self._to_browser)
         os.close(self._from_browser)
         shutil.rmtree(self._profile, ignore_errors=True)

@@ -5,6 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+import tripodjax as tj
 from tripodjax import TABLE_2_1, Layout, seed_case
 
 
@@ -103,6 +104,27 @@ def test_fields_must_be_real_numbers(field, bad):
     kwargs[field] = bad
     with pytest.raises(TypeError, match=f"Layout.{field}"):
         Layout(**kwargs)
+
+
+@pytest.mark.parametrize("sequence", [list, tuple])
+def test_python_sequences_are_arrays(sequence):
+    layout = Layout(sequence([25.0, 26.0]), sequence([500.0, 500.0]), sequence([0.3, 0.3]))
+    assert all(isinstance(getattr(layout, f), np.ndarray) for f in ("R", "l", "gamma0"))
+    assert len(jax.tree_util.tree_leaves(layout)) == 3  # three leaves, not six
+    arrays = Layout(np.array([25.0, 26.0]), np.array([500.0, 500.0]), np.array([0.3, 0.3]))
+    got, want = tj.sweep(layout, n_theta=36), tj.sweep(arrays, n_theta=36)
+    for name in want:
+        np.testing.assert_array_equal(got[name], want[name])
+
+
+def test_float16_is_refused_in_one_line():
+    for call in (
+        lambda: Layout(np.float16(25.0), 500.0, 0.3),
+        lambda: tj.solve_halfshaft(Layout(25.0, 500.0, 0.3), np.float16(0.3)),
+        lambda: tj.solve_halfshaft(Layout(25.0, 500.0, 0.3), jnp.zeros(3, jnp.float16)),
+    ):
+        with pytest.raises(TypeError, match=r"has dtype float16; allowed: float32 or float64"):
+            call()
 
 
 def test_boolean_and_string_arrays_are_rejected():

@@ -193,6 +193,22 @@ def test_gradients_match_central_differences():
             ),
             "LoadSpectrum.torque has shape (2, 2); allowed: a non-empty 1-D array",
         ),
+        (  # shares summing to 1 over the whole 2-D field: the shape is what is wrong
+            lambda: life.LoadSpectrum(
+                np.ones((2, 2)), np.ones((2, 2)), np.ones((2, 2)), np.full((2, 2), 0.25)
+            ),
+            "LoadSpectrum.torque has shape (2, 2); allowed: a non-empty 1-D array",
+        ),
+        (
+            lambda: life.WorkingConditions(np.zeros(4), np.full((2, 2), 0.25)),
+            "WorkingConditions.share has shape (2, 2)",
+        ),
+        (  # a batch of spectra: the row that does not sum to 1 is named
+            lambda: life.life_hours(
+                100.0, np.ones((2, 2)), np.ones((2, 2)), np.array([[0.5, 0.5], [0.25, 0.25]])
+            ),
+            "share[1, :] sums to 0.5",
+        ),
         (
             lambda: life.LoadSpectrum(1.0, 1.0, 1.0, 1.0),
             "LoadSpectrum.torque has shape (); allowed: a non-empty 1-D array",

@@ -8,11 +8,15 @@ import re
 import subprocess
 import sys
 import tempfile
+import time
 import tomllib
+import types
 from pathlib import Path
 
 import pytest
 from browser import Page, executable
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.text import Text
 
 from tripodjax import optimize
 from tripodjax.optimize import document, report
@@ -473,6 +477,196 @@ def test_write_report_from_python(tmp_path):
     assert "report.html" in os.listdir(tmp_path / "html")
     with pytest.raises(ValueError, match="pdf"):
         optimize.write_report(result, spec, tmp_path / "bad", formats=("pdf",))
+    # A report pairs a design with the spec it was solved for, or it is refused in one line.
+    other = spec.replace_values(hertz={"P_d": 1.01 * float(spec.values["hertz"]["P_d"])})
+    refusals = (
+        (None, spec, TypeError, r"result = None is not allowed; allowed: the Result of"),
+        (result, other, ValueError, r"another spec: hertz.P_d = .* there, .* in this spec"),
+        (result, optimize.load_spec(), TypeError, "the Result of another spec"),
+    )
+    for res, paired, error, message in refusals:
+        with pytest.raises(error, match=message) as info:
+            optimize.write_report(res, paired, tmp_path / "refused")
+        assert "\n" not in str(info.value)
+    assert not (tmp_path / "refused").exists()
     # Figures given as matplotlib Figures are embedded as SVG.
     page = document.render_html(body, {"convergence.png": report.figure_convergence(result)})
     assert "data:image/svg+xml;base64," in page
+
+
+# --------------------------------------------------------------------------- the figures
+
+
+def _result_of_report(body):
+    """What the figures read of a Result, from the report (no solve)."""
+    design = {"R": body["design"]["R_mm"], "d_roller": body["design"]["d_roller_mm"]}
+    return types.SimpleNamespace(
+        design=design,
+        constraints=body["constraints"],
+        history=body["history"],
+        quantities=body["quantities"],
+        sensitivities={"elasticities": body["elasticities"]},
+    )
+
+
+def _pareto_of_report(body):
+    members = []
+    for p in body["pareto_front"]:
+        member = types.SimpleNamespace(
+            design={"R": p["R_mm"], "d_roller": p["d_roller_mm"]},
+            quantities={"outer_diameter": p["outer_diameter_mm"], "gaf_rms": p["gaf_rms_N"]},
+        )
+        members += [(w, member) for w in p.get("same_design_w_gaf_rms", [p["w_gaf_rms"]])]
+    return members
+
+
+def _drawn(fig):
+    """Draw ``fig`` (its layout done as when it is written) and return the renderer."""
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    return canvas.get_renderer()
+
+
+def _texts(fig, renderer):
+    """The texts drawn: (text, its box in pixels); tick labels of ticks outside the view are not."""
+    hidden = set()
+    for ax in fig.axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            low, high = sorted(axis.get_view_interval())
+            for tick in axis.get_major_ticks() + axis.get_minor_ticks():
+                if not low - 1e-9 * (high - low) <= tick.get_loc() <= high + 1e-9 * (high - low):
+                    hidden.update({id(tick.label1), id(tick.label2)})
+    return [
+        (t.get_text(), t.get_window_extent(renderer))
+        for t in fig.findobj(Text)
+        if t.get_visible() and t.get_text().strip() and id(t) not in hidden
+    ]
+
+
+def _apart(boxes):
+    return [(a, b) for i, (a, x) in enumerate(boxes) for b, y in boxes[i + 1 :] if x.overlaps(y)]
+
+
+def _assert_readable(fig):
+    """Every text inside the figure; no two tick labels of an axis, nor two annotations, overlap."""
+    renderer = _drawn(fig)
+    outside = [
+        text
+        for text, box in _texts(fig, renderer)
+        if box.x0 < -0.5
+        or box.y0 < -0.5
+        or box.x1 > fig.bbox.x1 + 0.5
+        or box.y1 > fig.bbox.y1 + 0.5
+    ]
+    assert outside == [], outside
+    assert _apart(_texts(fig, renderer)) == []  # titles, labels, legends, annotations
+    return renderer
+
+
+def test_figures_keep_every_label_inside_and_apart(run):
+    out, body = run
+    result = _result_of_report(body)
+    figures = {
+        "convergence": report.figure_convergence(result),
+        "margins": report.figure_margins(result),
+        "pareto": report.figure_pareto(result, _pareto_of_report(body)),
+        "tornado": report.figure_tornado(result),
+        "catalogue": report.figure_catalogue(result, body["catalogue"], body["catalogue_choice"]),
+        "damage": report.figure_damage(body["life"]),
+        "importance": report.figure_importance(RELIABILITY),
+    }
+    for name, fig in figures.items():
+        try:
+            _assert_readable(fig)
+        except AssertionError as error:
+            raise AssertionError(f"{name}: {error}") from None
+    # Iterations are whole numbers: no tick between them.
+    for ax in figures["convergence"].axes:
+        ticks = ax.get_xticks()
+        assert len(ticks) and all(float(t).is_integer() for t in ticks), ticks
+    # The catalogue's legend covers no point: it lies outside the axes.
+    catalogue = figures["catalogue"]
+    renderer = _drawn(catalogue)
+    ax = catalogue.axes[0]
+    points = ax.transData.transform([(e["R_mm"], e["d_roller_mm"]) for e in body["catalogue"]])
+    for legend in [*catalogue.legends, *(a.get_legend() for a in catalogue.axes)]:
+        if legend is not None:
+            box = legend.get_window_extent(renderer)
+            assert not any(box.contains(x, y) for x, y in points)
+    # One label per catalogue size, at its point.
+    assert sorted(t.get_text() for t in ax.texts) == sorted(e["size"] for e in body["catalogue"])
+    # Each sensitivity row's label sits at the middle of that row's bars, one bar or three.
+    tornado = figures["tornado"].axes[0]
+    centres = {}
+    for bar in tornado.patches:
+        centres.setdefault(round(bar.get_y() + bar.get_height() / 2), []).append(
+            bar.get_y() + bar.get_height() / 2
+        )
+    for tick in tornado.get_yticks():
+        mid = (min(centres[round(tick)]) + max(centres[round(tick)])) / 2
+        assert mid == pytest.approx(tick, abs=1e-9)
+    # The Pareto front: one point per distinct design.
+    line = figures["pareto"].axes[0].lines[0]
+    assert len(line.get_xdata()) == len(body["pareto_front"])
+
+
+def test_the_sensitivity_table_ranks_as_the_chart(run):
+    _, body = run
+    table = document.tables(body)["sensitivities"]
+    chart = report.figure_tornado(_result_of_report(body))
+    labels = [t.get_text() for t in chart.axes[0].get_yticklabels()][::-1]
+    assert [row[0] for row in table.rows] == labels
+    assert f"The {len(labels)} largest of {len(body['sensitivities'])}" in table.notes[0]
+    # The summary's count of switches is the near-switch section's, and "none" is said only
+    # of the inputs whose derivatives are withheld.
+    notes = body["sensitivity_notes"]
+    switches = document.tables(body)["switch"]
+    assert f"{len(switches.rows)} (the near-switch notes)" in table.notes[1]
+    assert f"{len(switches.rows)} switches" in switches.notes[0]
+    near = ", ".join(notes["near_switch"]) or "none"
+    assert f"(derivatives withheld): {near};" in table.notes[1]
+    assert f"(near a switch: {near})" in switches.notes[0]
+
+
+def test_the_pareto_front_lists_each_design_once(run):
+    _, body = run
+    front = body["pareto_front"]
+    designs = [(p["R_mm"], p["d_roller_mm"]) for p in front]
+    for i, a in enumerate(designs):
+        for b in designs[i + 1 :]:
+            assert (
+                max(abs(x - y) / max(1.0, abs(x)) for x, y in zip(a, b, strict=True))
+                > report.SAME_DESIGN
+            )
+    weights = [w for p in front for w in p["same_design_w_gaf_rms"]]
+    assert weights == sorted(weights) and len(weights) == 5  # the five weights swept
+    table = document.tables(body)["pareto_front"]
+    assert f"5 weights swept, {len(front)} distinct designs" in table.notes[0]
+    assert [row[1] for row in table.rows] == [
+        ", ".join(f"{w:g}" for w in p["same_design_w_gaf_rms"]) for p in front
+    ]
+
+
+def test_a_long_name_is_drawn_short_and_fast():
+    life = copy.deepcopy(LIFE)
+    life["conditions"][0]["name"] = "x" * 1_000_000  # a 1 MB name, as a spec may hold
+    start = time.perf_counter()
+    fig = report.figure_damage(life)
+    _assert_readable(fig)
+    assert time.perf_counter() - start < 10  # 100 s before
+    names = [t.get_text() for t in fig.axes[1].get_xticklabels()]
+    assert names[0].endswith("…") and set(names[0][:-1]) == {"x"} and len(names[0]) <= 40
+    assert names[1:] == ["straight", "shock"]
+
+
+@needs_chromium
+def test_the_browser_starts_without_forking_this_process(tmp_path):
+    """A fork of this (JAX-threaded) process would warn of a deadlock: none is made."""
+    forks = []
+    os.register_at_fork(before=lambda: forks.append(1))
+    page = tmp_path / "page.html"
+    page.write_text("<p>tripodjax</p>", encoding="utf-8")
+    with Page(CHROMIUM) as browser:
+        browser.open(page.as_uri())
+        assert browser.evaluate("document.body.innerText") == "tripodjax"
+    assert forks == []

@@ -389,6 +389,25 @@ def test_map_chunks_evaluates_rows_in_padded_chunks():
 
 
 @pytest.mark.parametrize(
+    "fn, shape",
+    [
+        (lambda x: x[:3], "(3,)"),  # rows lost: 10 inputs gave 6 rows, silently
+        (lambda x: x.sum(), "()"),  # a scalar: an IndexError
+        (lambda x: {"a": x, "b": x[None]}, "(1, 4)"),
+    ],
+)
+def test_map_chunks_refuses_an_output_without_one_row_per_input(fn, shape):
+    with pytest.raises(ValueError) as info:
+        map_chunks(fn, np.arange(10.0), 4)
+    message = str(info.value)
+    assert f"has shape {shape} for a chunk of 4 rows" in message, message
+    assert "\n" not in message and "allowed: every output leaf with leading length 4" in message
+    if shape == "()":  # no rows: the output's shape is checked the same way
+        with pytest.raises(ValueError, match=r"has shape \(\) for a chunk of"):
+            map_chunks(fn, np.zeros(0), 4)
+
+
+@pytest.mark.parametrize(
     "kwargs, error, message",
     [
         ({"chunk_size": 2.5}, TypeError, "chunk_size = 2.5"),

@@ -91,12 +91,14 @@ def check_real(name, value, *, allowed="a real number or an array of real number
     NumPy or a boolean array), ``None``, complex numbers, objects that are not
     numbers, and lists that do not form a rectangular array of real numbers.
     Integers are accepted (they are real numbers); the caller checks values.
+    Floats are float32 or float64: a float16 value raises ``TypeError`` too.
     """
     if isinstance(value, jax.core.Tracer):
         if not np.issubdtype(value.dtype, np.integer) and not np.issubdtype(
             value.dtype, np.floating
         ):
             raise TypeError(f"{name} has dtype {value.dtype}; allowed: {allowed}")
+        _check_precision(name, value.dtype)
         return None
     if value is None or isinstance(value, (str, bytes, bool, np.bool_, complex, dict, set)):
         raise TypeError(_not_allowed(name, value, allowed))
@@ -118,7 +120,17 @@ def check_real(name, value, *, allowed="a real number or an array of real number
         raise TypeError(_not_allowed(name, value, allowed)) from None
     if array.dtype.kind not in "fiu":
         raise TypeError(f"{name} = {_show(value)} has dtype {array.dtype}; allowed: {allowed}")
+    _check_precision(name, array.dtype)
     return array
+
+
+def _check_precision(name, dtype):
+    """The one precision rule: floats are float32 or float64 (float16 has no complex type, nor
+    the resolution of the solves; it is refused rather than silently widened)."""
+    if dtype.kind == "f" and dtype.itemsize < 4:
+        raise TypeError(
+            f"{name} has dtype {dtype}; allowed: float32 or float64 (e.g. x.astype(np.float32))"
+        )
 
 
 FLOAT_MAX = sys.float_info.max
@@ -275,7 +287,8 @@ def check_range(
 
 
 def check_shares(name, share, axis=-1):
-    """Non-negative finite shares that sum to 1 (along ``axis`` for an array)."""
+    """Non-negative finite shares that sum to 1 (along ``axis`` for an array; the error names
+    the first slice that does not, e.g. ``share[1, :]``)."""
     array = check_real(name, share)
     if array is None:
         return
@@ -283,6 +296,10 @@ def check_shares(name, share, axis=-1):
     total = np.sum(array, axis=axis) if array.ndim else array
     bad = np.abs(total - 1.0) > 1e-6
     if np.any(bad):
+        if np.ndim(total):  # name the slice along ``axis`` that does not sum to 1
+            index = [str(int(i)) for i in np.argwhere(bad)[0]]
+            index.insert(axis % array.ndim, ":")
+            name = f"{name}[{', '.join(index)}]"
         shown = float(np.asarray(total)[bad].flat[0]) if np.ndim(total) else float(total)
         raise ValueError(f"{name} sums to {shown:.6g}; the shares must sum to 1")
 

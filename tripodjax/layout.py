@@ -43,7 +43,8 @@ class Layout:
     and differentiated with ``jax.grad`` (gradients come back as a Layout;
     JAX rebuilds instances without re-running the checks).
 
-    Fields are real numbers or arrays of real numbers: a ``str``, ``bool``,
+    Fields are real numbers or arrays of real numbers (a Python list or tuple
+    of numbers is taken as a NumPy array): a ``str``, ``bool``,
     ``None``, complex number or list of those raises ``TypeError``. Their
     shapes must broadcast together (numbers, or arrays of one shape, e.g. a
     batch for [`sweep`][tripodjax.sweep.sweep]) and none may be empty. Every
@@ -67,7 +68,10 @@ class Layout:
     def __post_init__(self) -> None:
         values = {"R": self.R, "l": self.l, "gamma0": self.gamma0}
         for name, value in values.items():
-            check_real(f"Layout.{name}", value)
+            array = check_real(f"Layout.{name}", value)
+            if isinstance(value, (list, tuple)):  # a NumPy array at the boundary, not a pytree node
+                object.__setattr__(self, name, array)
+                values[name] = array
         check_shapes({name: np.shape(value) for name, value in values.items()}, "Layout.")
         check_layout_domain(
             **{name: value for name, value in values.items() if concrete(value) is not None},

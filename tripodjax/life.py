@@ -49,6 +49,7 @@ from tripodjax._checks import (
     check_choice,
     check_non_negative,
     check_positive,
+    check_real,
     check_shares,
     checked_pytree_dataclass,
 )
@@ -190,11 +191,12 @@ class LoadSpectrum:
         check_non_negative("LoadSpectrum.torque", self.torque, " N·m")
         check_non_negative("LoadSpectrum.speed", self.speed, " rpm")
         check_non_negative("LoadSpectrum.vehicle_speed", self.vehicle_speed, " km/h")
-        check_shares("LoadSpectrum.share", self.share)
-        _check_vectors(
+        check_real("LoadSpectrum.share", self.share)
+        _check_vectors(  # the shape before the shares: the share rule is that of one spectrum
             "LoadSpectrum",
             {name: getattr(self, name) for name in ("torque", "speed", "vehicle_speed", "share")},
         )
+        check_shares("LoadSpectrum.share", self.share)
 
 
 @checked_pytree_dataclass
@@ -215,8 +217,9 @@ class WorkingConditions:
 
     def __post_init__(self) -> None:
         _check_angle("WorkingConditions.angle", self.angle)
-        check_shares("WorkingConditions.share", self.share)
+        check_real("WorkingConditions.share", self.share)
         _check_vectors("WorkingConditions", {"angle": self.angle, "share": self.share})
+        check_shares("WorkingConditions.share", self.share)
 
 
 @pytree_dataclass

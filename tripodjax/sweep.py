@@ -197,6 +197,20 @@ def _gather(leaf: jax.Array, count: int) -> np.ndarray:
     return np.asarray(multihost_utils.process_allgather(leaf, tiled=True))[:count]
 
 
+def _check_rows(out: Any, rows: int) -> Any:
+    """``out`` unless a leaf of ``fn``'s output lacks the chunk's leading length ``rows`` (row by row)."""
+    leaves = jax.tree_util.tree_leaves_with_path(out)
+    bad = [(path, np.shape(leaf)) for path, leaf in leaves if np.shape(leaf)[:1] != (rows,)]
+    if bad:
+        path, shape = bad[0]
+        raise ValueError(
+            f"map_chunks: fn's output{jax.tree_util.keystr(path)} has shape {shape} for a chunk "
+            f"of {rows} rows; "
+            f"allowed: every output leaf with leading length {rows}, row i from input row i"
+        )
+    return out
+
+
 def map_chunks(
     fn: Callable[[Any], Any],
     inputs: Any,
@@ -256,7 +270,7 @@ def map_chunks(
     chunk = len(devices) * max(1, math.ceil(math.ceil(max(n, 1) / calls) / len(devices)))
     if n == 0:
         shapes = [jax.ShapeDtypeStruct((chunk, *leaf.shape[1:]), leaf.dtype) for leaf in leaves]
-        out = jax.eval_shape(fn, jax.tree_util.tree_unflatten(treedef, shapes))
+        out = _check_rows(jax.eval_shape(fn, jax.tree_util.tree_unflatten(treedef, shapes)), chunk)
         return jax.tree_util.tree_map(lambda s: np.zeros((0, *s.shape[1:]), s.dtype), out)
     if progress is None and n <= chunk:
         progress = False
@@ -280,7 +294,7 @@ def map_chunks(
             stop = min(start + chunk, n)
             index = np.minimum(np.arange(start, start + chunk), stop - 1)
             part = jax.tree_util.tree_unflatten(treedef, [place(leaf[index]) for leaf in leaves])
-            dispatched = (fn(part), stop - start)
+            dispatched = (_check_rows(fn(part), chunk), stop - start)
             if pending is not None:
                 collect(pending)
             pending = dispatched

@@ -57,6 +57,7 @@ from tripodjax._checks import (
     check_non_negative,
     check_positive,
     check_range,
+    check_real,
     check_shares,
     checked_pytree_dataclass,
 )
@@ -183,7 +184,7 @@ class DrivingModes:
     use: ArrayLike
 
     def __post_init__(self) -> None:
-        check_shares("DrivingModes.weight", self.weight)
+        check_real("DrivingModes.weight", self.weight)
         check_range("DrivingModes.use", self.use, 0.0, 1.0)
         check(
             "DrivingModes.use",
@@ -206,6 +207,7 @@ class DrivingModes:
             raise ValueError(
                 f"DrivingModes.use has {u[0]} modes and weight {w[0]}; they must agree"
             )
+        check_shares("DrivingModes.weight", self.weight)  # after the shape: one share per mode
 
 
 @pytree_dataclass
