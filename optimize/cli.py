@@ -210,22 +210,6 @@ def _mid_box(spec):
     }
 
 
-def _deterministic(spec):
-    """The problem the solve needs: without a chance constraint the spec's [uncertainty]
-    enters only the reliability table, so the solve and every evaluation run on the spec
-    without it (the programs of the same spec without [uncertainty], compiled once)."""
-    import dataclasses
-
-    from tripodjax.optimize.spec import Spec
-
-    if spec.structure.chance or not spec.structure.uncertainty:
-        return spec
-    structure = dataclasses.replace(spec.structure, uncertainty=())
-    return Spec(
-        structure=structure, values={**spec.values, "uncertainty": {}}, resolved=spec.resolved
-    )
-
-
 def main(argv=None):
     """The command: parse, check, compute (in a worker thread), write. Returns the exit status."""
     argv = sys.argv[1:] if argv is None else argv
@@ -270,7 +254,7 @@ def _compute(args, given, command_line):
     """Everything the report holds: solve, catalogue, landscape, sensitivities, figures.
 
     ``given`` is the spec as loaded (its reliability table and the report's spec); the
-    solve and the evaluations run on its deterministic problem (``_deterministic``).
+    solve and the evaluations run on its deterministic problem (`Spec.deterministic`).
     """
     import contextvars
     from concurrent.futures import ThreadPoolExecutor
@@ -296,7 +280,7 @@ def _compute(args, given, command_line):
     from tripodjax.optimize.sensitivity import sensitivities
     from tripodjax.optimize.solver import _with, run
 
-    spec = _deterministic(given)
+    spec = given.deterministic()
     progress = {"auto": None, "on": True, "off": False}[args.progress]
     pareto_weights, weight = [], None
     if "gaf_rms" in spec.structure.objective:
@@ -314,9 +298,9 @@ def _compute(args, given, command_line):
     # second thread beside the solve, at a design inside the box.
     full_reference = None
     if spec.structure.fidelity != "newton" or spec.structure.n_theta != 360:
-        full_reference = _deterministic(
-            spec.replace_values(solver={"fidelity": "newton", "n_theta": 360})
-        )
+        full_reference = spec.replace_values(
+            solver={"fidelity": "newton", "n_theta": 360}
+        ).deterministic()
     # Matplotlib, Jinja2, openpyxl and the report templates load beside the solve.
     threading.Thread(target=document.prepare, daemon=True).start()
     pool = ThreadPoolExecutor(max_workers=1)

@@ -358,6 +358,20 @@ class Spec:
         given = _given(_plain(sections), None)
         return _check(_merge(self.resolved, given))
 
+    def deterministic(self) -> "Spec":
+        """The spec whose problem a solve needs: without a chance constraint the
+        ``[uncertainty]`` section enters only the reliability table, so this is the spec
+        less it (the same structure, and so the same compiled programs, as a spec written
+        without it); a spec with a chance constraint, or without uncertainty, is itself."""
+        if self.structure.chance or not self.structure.uncertainty:
+            return self
+        structure = dataclasses.replace(self.structure, uncertainty=())
+        return Spec(
+            structure=structure,
+            values={**self.values, "uncertainty": {}},
+            resolved=self.resolved,
+        )
+
 
 jax.tree_util.register_pytree_node(Spec, _flatten_spec, _unflatten_spec)
 
