@@ -432,6 +432,11 @@ def _g(x: float, digits: int = 3) -> str:
     return f"{x:.{digits}g}"
 
 
+def _n(x: float) -> str:
+    """A time or ratio: 3 significant digits, no exponent (``1499``, ``24.9``, ``0.0079``)."""
+    return f"{x:.0f}" if abs(x) >= 1000 else _g(x)
+
+
 def _e(x: float) -> str:
     return "0" if x == 0 else f"{x:.1e}"
 
@@ -478,7 +483,7 @@ def sweep_tables(figures: dict) -> dict[str, list[str]]:
                 _g(rate),
                 "" if speedup is None else _g(speedup),
                 _g(rate / numpy_rate),
-                _g(rate / fsolve["points_per_s"], 4),
+                _n(rate / fsolve["points_per_s"]),
                 *(_e(errors[k]) for k in COMPARED),
             ]
         )
@@ -519,7 +524,8 @@ def sweep_tables(figures: dict) -> dict[str, list[str]]:
         ],
         [
             "XLA's float64 sine",
-            f"{_g(t['sines_per_s'])}/s: 8 per angle would cap a sweep at "
+            f"{_g(t['sines_per_s'])}/s: the 8 transcendental functions per angle of the previous "
+            f"solver would cap a sweep at "
             f"{_g(t['sines_per_s'] / 8)} angles/s",
         ],
         [
@@ -534,13 +540,13 @@ def sweep_tables(figures: dict) -> dict[str, list[str]]:
     for level in levels:
         head += [f"{level} ms", "share"]
     default = {level: costs[level]["default"] for level in levels}
-    rows = [["default outputs", *[c for level in levels for c in (_g(1e3 * default[level]), "1")]]]
+    rows = [["default outputs", *[c for level in levels for c in (_n(1e3 * default[level]), "1")]]]
     for name in costs[levels[0]]["outputs"]:
         mark = "\\* " if name in costs["default_outputs"] else ""
         cells = []
         for level in levels:
             seconds = costs[level]["outputs"][name]
-            cells += [_g(1e3 * seconds), f"{seconds / default[level]:.2f}"]
+            cells += [_n(1e3 * seconds), f"{seconds / default[level]:.2f}"]
         rows.append([mark + name, *cells])
     ratios = "; ".join(
         f"`{level}` {default['newton'] / default[level]:.1f}× newton"
