@@ -16,6 +16,10 @@
   A4 print and report.xlsx): taken from `$TRIPODJAX_REPORT_EXAMPLE` (default build/report-example/; the browser
   test tests/test_report_html.py leaves them there) when newer than the package sources, and
   made here otherwise (the command on the default spec, then headless Chromium's --screenshot).
+- The measured tables of the speed page (`<!-- bench:NAME -->`) are rendered from the benches'
+  JSON committed in docs/bench/ (`python -m tripodjax.bench --json …`, `python -m
+  tripodjax.optimize.bench --json …`), each under a line naming the CPU, date and versions it was
+  measured with; a missing file or figure fails the build.
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from __future__ import annotations
 import contextlib
 import importlib
 import io
+import json
 import logging
 import os
 import re
@@ -414,6 +419,329 @@ def equation_map_markdown(config) -> str:
 
 
 # ---------------------------------------------------------------------------------------------
+# the benches' tables
+
+BENCH = ROOT / "docs" / "bench"
+SWEEP_BENCH = "tripodjax-bench.json"
+OPTIMISER_BENCH = "optimize-bench.json"
+COMPARED = ("delta_pp", "irregularity", "gamma_pp", "ecc_max")
+
+
+def _g(x: float, digits: int = 3) -> str:
+    """A figure to ``digits`` significant digits (``1.46e+07``, ``24.9``)."""
+    return f"{x:.{digits}g}"
+
+
+def _n(x: float) -> str:
+    """A time or ratio: 3 significant digits, no exponent (``1499``, ``24.9``, ``0.0079``)."""
+    return f"{x:.0f}" if abs(x) >= 1000 else _g(x)
+
+
+def _e(x: float) -> str:
+    return "0" if x == 0 else f"{x:.1e}"
+
+
+def _table(head: list[str], rows: list[list[str]], right: int = 1) -> list[str]:
+    """A Markdown table; columns from ``right`` on are right-aligned."""
+    align = ["---" if i < right else "---:" for i in range(len(head))]
+    return [
+        "| " + " | ".join(head) + " |",
+        "| " + " | ".join(align) + " |",
+        *("| " + " | ".join(row) + " |" for row in rows),
+    ]
+
+
+def measured_on_markdown(name: str, command: str, machine: dict) -> str:
+    """The line under a bench table: which command, on which CPU, when, with what."""
+    load = machine.get("load_average")
+    load = f", load average {load[0]:g}" if load else ""
+    return (
+        f"*Measured by `{command}` on {machine['cpu']} ({machine['cpu_count']} cores{load}), "
+        f"{machine['date']}; JAX {machine['jax']} ({machine['backend']}), tripodjax "
+        f"{machine['tripodjax']}, Python {machine['python']}. "
+        f"Figures: [docs/bench/{name}](bench/{name}).*"
+    )
+
+
+def sweep_tables(figures: dict) -> dict[str, list[str]]:
+    """The tables of ``python -m tripodjax.bench``'s JSON, by marker name."""
+    variants = figures["variants"]
+    numpy_rate = figures["numpy_newton"]["points_per_s"]
+    fsolve = figures["fsolve_loop"]
+    peers = [
+        ("NumPy Newton (peer)", figures["numpy_newton"]),
+        (f"SciPy fsolve loop (peer, {fsolve['layouts']} layouts)", fsolve),
+    ]
+    rows = []
+    for name, entry in [*((n.replace("/", " / "), v) for n, v in variants.items()), *peers]:
+        rate = entry["points_per_s"]
+        speedup = entry.get("speedup_vs_newton_same_dtype")
+        errors = entry["errors_vs_newton_float64"]
+        rows.append(
+            [
+                name,
+                _g(rate),
+                "" if speedup is None else _g(speedup),
+                _g(rate / numpy_rate),
+                _n(rate / fsolve["points_per_s"]),
+                *(_e(errors[k]) for k in COMPARED),
+            ]
+        )
+    head = ["variant", "angles/s", "× newton", "× NumPy", "× fsolve"]
+    tables = {"sweep": _table([*head, *(f"error {k}" for k in COMPARED)], rows)}
+    tables["sweep"].insert(
+        0,
+        f"{figures['n_layouts']} layouts × {figures['n_theta']} angles "
+        f"({figures['angles_solved_per_layout']} solved per layout, the rest by symmetry):",
+    )
+    tables["sweep"].insert(1, "")
+    domain = [
+        [
+            name.replace("/", " / "),
+            *(_e(v["domain_errors_vs_newton_float64"][k]) for k in COMPARED),
+            _e(v["domain_max_error_estimate"]),
+        ]
+        for name, v in variants.items()
+    ]
+    tables["domain"] = [
+        f"{figures['domain_layouts']} layouts:",
+        "",
+        *_table(["variant", *COMPARED, "largest error estimate"], domain),
+    ]
+    t, g = figures["machine_limit"], figures["gradient_to_forward"]
+    limit = [
+        ["one polynomial Newton step", f"{_g(t['polynomial_steps_per_s'])} angles/s"],
+        [
+            "steps per solved angle",
+            f"{t['steps_per_solved_angle']} ({t['polynomial_iterations']} polynomial steps, "
+            f"{t['exact_iterations']} exact-sine iterations, and the Jacobian solve for dψ/dθ)",
+        ],
+        ["the limit for newton", f"{_g(t['limit_points_per_s'])} angles/s"],
+        [
+            "newton / float64 reaches",
+            f"{100 * t['newton_fraction_of_limit']:.0f} % of it (the status, the metrics and "
+            "the chunking are the rest)",
+        ],
+        [
+            "XLA's float64 sine",
+            f"{_g(t['sines_per_s'])}/s: the 8 transcendental functions per angle of the previous "
+            f"solver would cap a sweep at "
+            f"{_g(t['sines_per_s'] / 8)} angles/s",
+        ],
+        [
+            f"gradient of the irregularity w.r.t. (R, l, γ0), {g['layouts']} layouts",
+            f"{g['ratio']:.1f}× the forward pass",
+        ],
+    ]
+    tables["limit"] = _table(["what", "measured"], limit, right=2)
+    costs = figures["output_costs"]
+    levels = [level for level in ("newton", "analytic", "closed_form") if level in costs]
+    head = ["output"]
+    for level in levels:
+        head += [f"{level} ms", "share"]
+    default = {level: costs[level]["default"] for level in levels}
+    rows = [["default outputs", *[c for level in levels for c in (_n(1e3 * default[level]), "1")]]]
+    for name in costs[levels[0]]["outputs"]:
+        mark = "\\* " if name in costs["default_outputs"] else ""
+        cells = []
+        for level in levels:
+            seconds = costs[level]["outputs"][name]
+            cells += [_n(1e3 * seconds), f"{seconds / default[level]:.2f}"]
+        rows.append([mark + name, *cells])
+    ratios = "; ".join(
+        f"`{level}` {default['newton'] / default[level]:.1f}× newton"
+        for level in levels
+        if level != "newton"
+    )
+    tables["output-costs"] = [
+        f"{costs['layouts']} layouts × {figures['n_theta']} angles:",
+        "",
+        *_table(head, rows),
+        "",
+        f"With the default outputs in this table: {ratios}.",
+    ]
+    return tables
+
+
+def optimiser_tables(figures: dict, default_solver: tuple[str, int]) -> dict[str, list[str]]:
+    """The tables of ``python -m tripodjax.optimize.bench``'s JSON, by marker name."""
+    tables: dict[str, list[str]] = {}
+    rows = []
+    command = figures.get("command")
+    if command:
+        floor = command["floor_s"]
+        rows += [
+            ['floor: `python -c "import jax, matplotlib.pyplot"`', f"{floor:.2f} s", "1"],
+            [
+                "`optimize-joint --out DIR`, cold (empty caches)",
+                f"{command['cold_s']:.1f} s",
+                f"{command['cold_over_floor']:.1f}× floor",
+            ],
+            [
+                "`optimize-joint --out DIR`, warm (compiled code cached)",
+                f"{command['warm_s']:.1f} s",
+                f"{command['warm_over_floor']:.1f}× floor",
+            ],
+        ]
+    free = figures.get("command_conformity_free")
+    if free:
+        for state in ("cold", "warm"):
+            rows.append(
+                [
+                    f"the same with the conformity free, {state} (floor {free['floor_s']:.2f} s)",
+                    f"{free[f'{state}_s']:.1f} s",
+                    f"{free[f'{state}_over_floor']:.1f}× floor",
+                ]
+            )
+    r = figures["resolve"]
+    rows += [
+        [
+            "`solve` of a spec that differs in the adhesion and P_d, after one `solve`",
+            f"{1e3 * r['resolve_s']:.0f} ms",
+            f"{r['resolve_over_slsqp']:.2f}× SLSQP",
+        ],
+        [
+            "SciPy SLSQP over `evaluate`, finite-difference gradients (peer)",
+            f"{1e3 * r['slsqp_s']:.0f} ms",
+            "1",
+        ],
+    ]
+    s = figures["long_spectrum"]
+    rows += [
+        [
+            f"{s['cases']}-case life spectrum: first `solve` (trace, compile, run)",
+            f"{s['first_solve_s']:.1f} s",
+            "1",
+        ],
+        [
+            f"its `sensitivities`, {s['inputs']} inputs (one reverse pass compiled and run)",
+            f"{s['sensitivities_s']:.1f} s",
+            f"{s['sensitivities_over_solve']:.2f}× its solve",
+        ],
+    ]
+    if "command_cold_s" in s:
+        rows.append(
+            [
+                f"`optimize-joint` on it, cold (floor {s['floor_s']:.2f} s in that call)",
+                f"{s['command_cold_s']:.1f} s",
+                f"{s['command_cold_over_floor']:.1f}× floor",
+            ]
+        )
+    w = figures["report"]
+    rows += [
+        [
+            "warm `optimize-joint` with report.html and report.xlsx, against without them",
+            f"{w['command_s']:.1f} s",
+            f"{w['command_added_s']:+.2f} s",
+        ],
+        [
+            "in one process: writing report.json and the PNGs",
+            f"{w['json_png_s']:.2f} s",
+            "1",
+        ],
+        [
+            "… and report.html and report.xlsx as well (with their imports the first time)",
+            f"{w['json_png_s'] + w['added_s']:.2f} s",
+            f"{w['added_s']:+.2f} s ({w['added_cold_s']:+.2f} s)",
+        ],
+    ]
+    tables["optimiser"] = [
+        *_table(["what", "time", "ratio"], rows),
+        "",
+        f"The re-solve and the SLSQP peer's designs are {_e(r['design_distance_rel'])} apart "
+        f"(relative); the first `solve` in that process took {r['first_solve_s']:.1f} s.",
+    ]
+    rows = [
+        [
+            row["structure"],
+            f"{row['first_solve_s']:.1f}",
+            f"{1e3 * row['solve_s']:.1f}",
+            "yes" if row["converged"] else "**no**",
+        ]
+        for row in figures["structures"]
+    ]
+    tables["structures"] = _table(
+        ["free variables", "first solve [s]", "re-solve [ms]", "converged"], rows
+    )
+    rows = []
+    for row in figures["fidelity"]:
+        cells = [
+            row["fidelity"],
+            str(row["n_theta"]),
+            f"{row['first_solve_s']:.1f}",
+            f"{1e3 * row['solve_s']:.1f}",
+            _e(row["design_distance_rel"]),
+            _e(row["objective_distance_rel"]),
+        ]
+        if (row["fidelity"], row["n_theta"]) == default_solver:
+            cells = [f"**{c}**" for c in cells]
+        rows.append(cells)
+    tables["fidelity"] = _table(
+        [
+            "fidelity",
+            "n_theta",
+            "first solve [s]",
+            "re-solve [ms]",
+            "design vs newton/360",
+            "objective vs newton/360",
+        ],
+        rows,
+    )
+    m = figures["monte_carlo"]
+    tables["monte-carlo"] = _table(
+        ["chain", "per second", "ratio"],
+        [
+            [
+                "Hertz + life (the default spec's requirements)",
+                f"{_g(m['hertz_life_samples_per_s'])} samples",
+                "",
+            ],
+            [
+                "analytic kinematics (n_theta 168) + Hertz + life",
+                f"{_g(m['kinematics_hertz_life_samples_per_s'])} samples",
+                f"{m['kinematic_mc_over_sweep']:.2f}× the sweep",
+            ],
+            [
+                "plain `sweep`, analytic, n_theta 168 (peer)",
+                f"{_g(m['sweep_layouts_per_s'])} layouts",
+                "1",
+            ],
+        ],
+    )
+    return tables
+
+
+def bench_markdown(markdown: str) -> str:
+    """Replace each ``<!-- bench:NAME -->`` with its table from docs/bench/ and its provenance."""
+    markers = set(re.findall(r"<!-- bench:([\w-]+) -->", markdown))
+    if not markers:
+        return markdown
+    import tomllib
+
+    from tripodjax.optimize import DEFAULT_SPEC_TOML
+
+    solver = tomllib.loads(DEFAULT_SPEC_TOML)["solver"]
+    sources = {
+        SWEEP_BENCH: ("python -m tripodjax.bench", sweep_tables),
+        OPTIMISER_BENCH: (
+            "python -m tripodjax.optimize.bench",
+            lambda f: optimiser_tables(f, (solver["fidelity"], solver["n_theta"])),
+        ),
+    }
+    for name, (command, render) in sources.items():
+        figures = json.loads((BENCH / name).read_text(encoding="utf-8"))
+        caption = measured_on_markdown(name, command, figures["measured_on"])
+        for marker, lines in render(figures).items():
+            if marker in markers:
+                markers.discard(marker)
+                block = "\n".join([*lines, "", caption])
+                markdown = markdown.replace(f"<!-- bench:{marker} -->", block)
+    if markers:
+        raise ValueError(f"no bench table named {sorted(markers)} (docs/hooks.py)")
+    return markdown
+
+
+# ---------------------------------------------------------------------------------------------
 
 
 def on_page_markdown(markdown, page, config, files):
@@ -432,4 +760,4 @@ def on_page_markdown(markdown, page, config, files):
         markdown = markdown.replace("<!-- report-example -->", report_example_markdown(files))
     if "<!-- equation-map -->" in markdown:
         markdown = markdown.replace("<!-- equation-map -->", equation_map_markdown(config))
-    return markdown
+    return bench_markdown(markdown)

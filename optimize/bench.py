@@ -474,6 +474,9 @@ def main(argv=None):
 
 def _write(path, figures):
     if path:
+        from tripodjax.bench import measured_on
+
+        figures["measured_on"] = measured_on()
         with open(path, "w", encoding="utf-8") as f:
             json.dump(figures, f, indent=2)
 

@@ -31,6 +31,9 @@ def test_bench_writes_its_figures(tmp_path):
     )
     assert result.returncode == 0, result.stderr
     figures = json.loads(out.read_text())
+    # Where and when: the docs' tables name the CPU and the date under each table.
+    machine = figures["measured_on"]
+    assert machine["cpu"] and machine["cpu_count"] >= 1 and machine["date"].endswith(" UTC")
     assert set(figures["variants"]) == {
         f"{solver}/{dtype}"
         for solver in ("newton", "analytic", "closed_form")

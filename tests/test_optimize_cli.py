@@ -3,6 +3,8 @@
 import contextlib
 import json
 import os
+import pathlib
+import re
 import shutil
 import signal
 import subprocess
@@ -99,6 +101,17 @@ def test_cli_default_exits_0_and_writes_a_strict_report(cli_run):
     # The cheap default (n_theta 120) is re-checked at full fidelity.
     assert report["full_fidelity"]["n_theta"] == 360
     assert min(report["full_fidelity"]["constraints"].values()) > -1e-4
+
+
+def test_cli_default_writes_every_document_the_readme_lists(cli_run):
+    """The README's main command (with the report extra, as the tests have it) writes exactly the
+    files its set-up paragraph lists."""
+    readme = (pathlib.Path(__file__).resolve().parent.parent / "README.md").read_text("utf-8")
+    setup = readme[readme.index("[start:setup]") : readme.index("[end:setup]")]
+    listed = set(re.findall(r"`([\w.]+\.(?:json|html|xlsx|png))`", setup))
+    result, out = cli_run
+    assert result.returncode == 0, result.stderr
+    assert listed == set(os.listdir(out))
 
 
 def test_cli_design_is_feasible_under_evaluate(cli_run):

@@ -23,6 +23,7 @@ do not transfer between machines; the ratios measured in one run do.
 """
 
 import argparse
+import datetime
 import json
 import os
 import platform
@@ -36,6 +37,38 @@ import numpy as np
 
 COMPARED = ("delta_pp", "irregularity", "gamma_pp", "ecc_max")
 SOLVERS = ("newton", "analytic", "closed_form")
+
+
+def measured_on() -> dict[str, Any]:
+    """Where and when a bench ran, written beside its figures (the docs' tables name it).
+
+    The CPU's model name (Linux's /proc/cpuinfo, else what `platform` knows), its core count,
+    the load average as the figures are written (a shared machine's noise), the UTC date and the
+    versions that produced the figures.
+    """
+    import jax
+
+    import tripodjax
+
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as f:
+            names = [line.split(":", 1)[1].strip() for line in f if line.startswith("model name")]
+        cpu = names[0] if names else cpu
+    except OSError:
+        pass
+    return {
+        "cpu": cpu,
+        "cpu_count": os.cpu_count(),
+        "load_average": [round(x, 2) for x in os.getloadavg()]
+        if hasattr(os, "getloadavg")
+        else None,
+        "date": datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC"),
+        "python": platform.python_version(),
+        "jax": jax.__version__,
+        "backend": jax.default_backend(),
+        "tripodjax": tripodjax.__version__,
+    }
 
 
 def random_layouts(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -597,6 +630,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.memory:
         results["memory"] = memory_of_sweep(args.memory, args.n_theta)
     print(report(results))
+    results["measured_on"] = measured_on()
     with open(args.json, "w") as f:
         json.dump(results, f, indent=2)
     print(f"figures written to {args.json}")
