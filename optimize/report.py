@@ -268,8 +268,9 @@ def figure_margins(result):
             fontsize=8,
         )
     # Room right of the longest bar for its number (the layout keeps the axes in the figure,
-    # not an annotation beyond its limits).
-    low, high = min(min(margins), 0.0), max(max(margins), 0.0)
+    # not an annotation beyond its limits); a non-finite margin (a nonfinite solve) has no bar.
+    finite = [m for m in margins if math.isfinite(m)]
+    low, high = min(finite + [0.0]), max(finite + [0.0])
     ax.set_xlim(low - 0.05 * (high - low), high + 0.3 * (high - low or 1.0))
     ax.axvline(0, color="k", lw=0.8)
     ax.set(
