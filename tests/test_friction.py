@@ -61,7 +61,9 @@ def test_dynamic_friction_inward_and_outward_are_opposite():
 
 @pytest.mark.parametrize("gamma_deg", [0.0, 7.5, 20.0, 45.0])
 def test_printed_gaf_equals_independent_evaluation(gamma_deg):
-    ours = friction.gaf(THETA, math.radians(gamma_deg), 1000.0, 25.0, PARAMS_EXAMPLE)
+    ours = friction.gaf(
+        THETA, math.radians(gamma_deg), 1000.0, 25.0, PARAMS_EXAMPLE, factor="printed"
+    )
     theirs = printed_gaf(THETA, gamma_deg, 1000.0, 25.0, 0.04, 0.007)
     np.testing.assert_allclose(ours, theirs, rtol=1e-12, atol=1e-9)
 
@@ -82,7 +84,7 @@ def test_printed_gaf_is_a_third_order_square_wave_linear_in_torque_and_inverse_i
 
 
 def test_printed_model_keeps_a_lambda_square_wave_at_zero_angle():
-    force = np.asarray(friction.gaf(THETA, 0.0, 1000.0, 25.0, PARAMS_EXAMPLE))
+    force = np.asarray(friction.gaf(THETA, 0.0, 1000.0, 25.0, PARAMS_EXAMPLE, factor="printed"))
     level = 2000.0 * 1000.0 / (3 * 25.0) * 0.007
     np.testing.assert_allclose(np.abs(force[np.abs(force) > 0]), level, rtol=1e-12)
 
@@ -111,7 +113,7 @@ def test_stroke_model_tends_to_the_printed_one_away_from_zero_angle():
 
 def test_halfshaft_gaf_is_the_printed_model_on_the_independent_kinematics():
     layout = seed_case("N")
-    result = friction.gaf_halfshaft(layout, 1000.0, PARAMS_EXAMPLE, n_theta=360)
+    result = friction.gaf_halfshaft(layout, 1000.0, PARAMS_EXAMPLE, n_theta=360, factor="printed")
     theta = np.asarray(period_grid(360, jnp.float64))
     psi, gamma = reference.solve(theta, layout.R, layout.l, layout.gamma0)
     # Lee's roller angle is ψ_i + 90°; γ varies per θ.

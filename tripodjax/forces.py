@@ -26,7 +26,9 @@ force of the pot on roller k is
     P_k = N_k [n_k − μ σ(v_k·b_k) b_k − λ σ(v_k·t_k) t_k] + Q_k e_r,k,
 
 σ a smooth sign (tanh of the velocity over ``width`` times the reference speed
-R|θ̇| + |v_p|, as the stroke model of [`tripodjax.friction`][tripodjax.friction]),
+R|θ̇| + |v_p|, as the stroke model of [`tripodjax.friction`][tripodjax.friction];
+the slip's as that of the stroke times tanh(sin β_k / width), β_k the slip angle,
+so that the friction saturates beyond a slip-to-roll ratio of about ``width``),
 μ the sliding coefficient (``FrictionParams.mu_slp``), λ the rolling resistance
 (``FrictionParams.lam``), Q_k the radial reaction of the conforming track. The
 unknowns (N_k, Q_k) follow from six linear equations per angle: each roller's
@@ -212,14 +214,20 @@ def _unit(v):
     return v / jnp.sqrt(jnp.sum(v * v, axis=-1, keepdims=True))
 
 
-def _solve(R, l, gamma0, sol, rates, inputs, speed, plunge):
-    """The force model at every angle of ``sol`` (with θ-rates ``rates``) for θ̇ = speed, v_p = plunge."""
+def _kinematics(R, l, gamma0, sol, rates):
+    """``_positions`` at every angle of ``sol`` and the θ-rates dZ_k/dθ, d|r_k|/dθ (from ``rates``)."""
     args = (sol.theta, sol.psi, sol.gamma, sol.delta, sol.delta_gamma)
     tangents = (jnp.ones_like(sol.theta), rates.psi, rates.gamma, rates.delta, rates.delta_gamma)
     geometry = functools.partial(_positions, R, l, gamma0)
     (centres, trunnion, theta_k, distance), (d_centres, _, _, d_distance) = jax.jvp(
         geometry, args, tangents
     )
+    return centres, trunnion, theta_k, d_centres[..., 2], d_distance
+
+
+def _solve(R, kinematics, inputs, speed, plunge):
+    """The force model at every angle of ``kinematics`` (``_kinematics``) for θ̇ = speed, v_p = plunge."""
+    centres, trunnion, theta_k, stroke_rate, distance_rate = kinematics
     dtype = centres.dtype
     speed, plunge = jnp.asarray(speed, dtype), jnp.asarray(plunge, dtype)
     mu, lam = inputs.params.mu_slp, inputs.params.lam
@@ -227,8 +235,8 @@ def _solve(R, l, gamma0, sol, rates, inputs, speed, plunge):
     reference = R * jnp.abs(speed) + jnp.abs(plunge)
     inverse = jnp.where(reference > 0, 1.0 / jnp.where(reference > 0, reference, 1.0), 0.0)
     inverse = inverse[..., None]
-    axial_speed = d_centres[..., 2] * speed[..., None] + plunge[..., None]  # Ż_k + v_p [mm/s]
-    trunnion_speed = d_distance * speed[..., None]  # d|r_k|/dt [mm/s]
+    axial_speed = stroke_rate * speed[..., None] + plunge[..., None]  # Ż_k + v_p [mm/s]
+    trunnion_speed = distance_rate * speed[..., None]  # d|r_k|/dt [mm/s]
     zero = jnp.zeros_like(theta_k)
     e_r = jnp.stack([jnp.cos(theta_k), jnp.sin(theta_k), zero], axis=-1)
     e_t = jnp.stack([-jnp.sin(theta_k), jnp.cos(theta_k), zero], axis=-1)
@@ -238,7 +246,10 @@ def _solve(R, l, gamma0, sol, rates, inputs, speed, plunge):
     rolling = axial_speed * rolling_dir[..., 2]  # v_k·t_k
     slip = axial_speed * slip_dir[..., 2]  # v_k·b_k
     sign_roll = _smooth_sign(rolling * inverse, width)
-    sign_slip = _smooth_sign(slip * inverse, width)
+    # e_Z lies in the tangent plane (e_Z ⊥ n_k): v_k = (Ż_k + v_p)(cos β t_k + sin β b_k), β the
+    # slip angle. The slip's sign is the stroke's times sin β's, each smoothed over the width: the
+    # friction saturates beyond a slip-to-roll ratio of about the width, at any stroke speed.
+    sign_slip = _smooth_sign(axial_speed * inverse, width) * _smooth_sign(slip_dir[..., 2], width)
     sign_trunnion = _smooth_sign(trunnion_speed * inverse, width)
     per_normal = (
         normal_dir
@@ -343,7 +354,8 @@ def _roller_forces(layout, theta, inputs, *, solver, case):
         lambda t: solve_halfshaft(layout, t, solver), (theta,), (jnp.ones_like(theta),)
     )
     R, l, gamma0 = (jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0))
-    return _solve(R, l, gamma0, sol, rates, inputs, *_case_motion(inputs, case))
+    kinematics = _kinematics(R, l, gamma0, sol, rates)
+    return _solve(R, kinematics, inputs, *_case_motion(inputs, case))
 
 
 def _safe_sqrt(x):
@@ -415,13 +427,14 @@ def _evaluate(layout, sol, rates, inputs, names):
     R, l, gamma0 = (jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0))
     torque = jnp.asarray(inputs.torque, dtype)
     out, cases = {}, {}
+    kinematics = _kinematics(R, l, gamma0, sol, rates)
     if set(names) & set(RUNNING_QUANTITIES):
-        cases["running"] = _solve(R, l, gamma0, sol, rates, inputs, inputs.speed, 0.0)
+        cases["running"] = _solve(R, kinematics, inputs, inputs.speed, 0.0)
         for name in names:
             if name in RUNNING_QUANTITIES:
                 out[name] = _running_quantity(name, cases["running"], torque, R)
     if set(names) & set(LTS_QUANTITIES):
-        f = cases["lts"] = _solve(R, l, gamma0, sol, rates, inputs, *_case_motion(inputs, "lts"))
+        f = cases["lts"] = _solve(R, kinematics, inputs, *_case_motion(inputs, "lts"))
         resistance = -jnp.sign(jnp.asarray(inputs.plunge_speed, dtype)) * f.axial
         if "lts_mean" in names:
             out["lts_mean"] = jnp.mean(resistance, -1)
