@@ -10,6 +10,7 @@ only at the user-facing edge). Physics layers, after the seed thesis:
 - [`tripodjax.motion`][tripodjax.motion]: velocities and accelerations, exact and first order (§2.11).
 - [`tripodjax.sweep`][tripodjax.sweep]: batch sweeps over layouts, chunked and sharded.
 - [`tripodjax.friction`][tripodjax.friction]: friction and the generated axial force, GAF (§3.2).
+- [`tripodjax.forces`][tripodjax.forces]: the rollers' forces from statics: GAF, LTS, complementary torque (§3.1).
 - [`tripodjax.hertz`][tripodjax.hertz]: Hertz contact, torque capacities, minimum size (§4.2).
 - [`tripodjax.life`][tripodjax.life]: load spectrum, working conditions, angle derating, Miner's rule (§4.2).
 - [`tripodjax.vehicle`][tripodjax.vehicle]: the customer's vehicle → the joint's load cycles (§4.3).
@@ -50,9 +51,11 @@ _ATTRIBUTES = {
     "sweep": "tripodjax.sweep",
     "map_chunks": "tripodjax.sweep",
     "GAFInputs": "tripodjax.friction",
+    "ForceInputs": "tripodjax.forces",
 }
 _SUBMODULES = (
     "catalogue",
+    "forces",
     "friction",
     "halfshaft",
     "hertz",
@@ -68,7 +71,18 @@ _SUBMODULES = (
 )
 
 if typing.TYPE_CHECKING:  # what the lazy attributes are, for type checkers and the docs
-    from tripodjax import catalogue, friction, hertz, joint, life, progress, solvers, vehicle
+    from tripodjax import (
+        catalogue,
+        forces,
+        friction,
+        hertz,
+        joint,
+        life,
+        progress,
+        solvers,
+        vehicle,
+    )
+    from tripodjax.forces import ForceInputs
     from tripodjax.friction import GAFInputs
     from tripodjax.halfshaft import HalfshaftSolution, solve_halfshaft
     from tripodjax.kinematics import KinematicMetrics, kinematic_metrics
@@ -118,6 +132,7 @@ __all__ = [
     "RESULTS",
     "Analytic",
     "ClosedForm",
+    "ForceInputs",
     "GAFInputs",
     "Newton",
     "SolverError",
@@ -130,6 +145,7 @@ __all__ = [
     "TABLE_2_1",
     "catalogue",
     "first_order_motion",
+    "forces",
     "friction",
     "halfshaft_motion",
     "hertz",
