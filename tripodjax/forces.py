@@ -428,14 +428,24 @@ def _evaluate(layout, sol, rates, inputs, names):
     torque = jnp.asarray(inputs.torque, dtype)
     out, cases = {}, {}
     kinematics = _kinematics(R, l, gamma0, sol, rates)
-    if set(names) & set(RUNNING_QUANTITIES):
-        cases["running"] = _solve(R, kinematics, inputs, inputs.speed, 0.0)
-        for name in names:
-            if name in RUNNING_QUANTITIES:
-                out[name] = _running_quantity(name, cases["running"], torque, R)
-    if set(names) & set(LTS_QUANTITIES):
-        f = cases["lts"] = _solve(R, kinematics, inputs, *_case_motion(inputs, "lts"))
-        resistance = -jnp.sign(jnp.asarray(inputs.plunge_speed, dtype)) * f.axial
+    wanted = [
+        case
+        for case, group in (("running", RUNNING_QUANTITIES), ("lts", LTS_QUANTITIES))
+        if set(names) & set(group)
+    ]
+    if wanted:  # every case in one pass: a leading axis of the motions (one trace, one program)
+        motions = [_case_motion(inputs, case) for case in wanted]
+        speed, plunge = (
+            jnp.stack([jnp.asarray(m[i], dtype) for m in motions]).reshape(-1, 1) for i in (0, 1)
+        )
+        solved = _solve(R, kinematics, inputs, speed, plunge)
+        for i, case in enumerate(wanted):
+            cases[case] = jax.tree_util.tree_map(lambda x, i=i: x[i], solved)
+    for name in names:
+        if name in RUNNING_QUANTITIES:
+            out[name] = _running_quantity(name, cases["running"], torque, R)
+    if "lts" in cases:
+        resistance = -jnp.sign(jnp.asarray(inputs.plunge_speed, dtype)) * cases["lts"].axial
         if "lts_mean" in names:
             out["lts_mean"] = jnp.mean(resistance, -1)
         if "lts_ripple" in names:
