@@ -424,3 +424,17 @@ def test_nan_inputs_inside_jit_give_nan_and_a_code():
     assert math.isnan(float(result.gaf_rms)) and math.isnan(float(result.lts_mean))
     assert int(result.result) == int(forces.RESULTS.nonfinite)
     assert int(jax.jit(run)(100.0).result) == int(forces.RESULTS.successful)
+
+
+def test_one_formula_from_gaf_to_lts():
+    """The imposed plunge moves the model from the running case (v_p → 0: GAF) to the LTS test
+    (v_p ≫ R θ̇: every roller strokes with the plunge, as with the joint held still)."""
+    inputs = forces.ForceInputs(1000.0, GREASE_A, speed=10.0, lts_speed=10.0, plunge_speed=1e-9)
+    running = forces.roller_forces(CASE_N, THETA, inputs)
+    creeping = forces.roller_forces(CASE_N, THETA, inputs, case="lts")
+    np.testing.assert_allclose(creeping.axial, running.axial, rtol=1e-8)
+    fast = forces.roller_forces(CASE_N, THETA, inputs.replace(plunge_speed=1e7), case="lts")
+    still = forces.roller_forces(CASE_N, THETA, inputs.replace(lts_speed=0.0), case="lts")
+    np.testing.assert_allclose(fast.axial, still.axial, rtol=1e-4)
+    assert np.all(np.asarray(still.axial) < 0)  # pushed in (+Z), the pot resists (−Z)
+    assert np.ptp(np.sign(np.asarray(running.axial))) > 0  # running: the rollers' own strokes
