@@ -438,3 +438,14 @@ def test_one_formula_from_gaf_to_lts():
     np.testing.assert_allclose(fast.axial, still.axial, rtol=1e-4)
     assert np.all(np.asarray(still.axial) < 0)  # pushed in (+Z), the pot resists (−Z)
     assert np.ptp(np.sign(np.asarray(running.axial))) > 0  # running: the rollers' own strokes
+
+
+def test_layout_fields_broadcast_against_the_angles():
+    inputs = forces.ForceInputs(1000.0, GREASE_A, mu_trunnion=0.02)
+    R = np.array([25.0, 30.0, 25.0, 28.0])
+    together = forces.roller_forces(Layout(R, 500.0, CASE_N.gamma0), THETA, inputs)
+    assert together.force.shape == (4, 3, 3)
+    for i in range(4):
+        alone = forces.roller_forces(Layout(R[i], 500.0, CASE_N.gamma0), THETA[i], inputs)
+        np.testing.assert_allclose(together.normal[i], alone.normal, rtol=1e-13)
+        np.testing.assert_allclose(together.moment[i], alone.moment, rtol=1e-13, atol=1e-12)

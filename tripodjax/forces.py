@@ -349,13 +349,19 @@ def roller_forces(
 @functools.partial(jax.jit, static_argnames=("solver", "case"))
 def _roller_forces(layout, theta, inputs, *, solver, case):
     dtype = jnp.result_type(layout.R, layout.l, layout.gamma0, theta, 0.0)
-    theta = jnp.asarray(theta, dtype)
-    sol, rates = jax.jvp(
-        lambda t: solve_halfshaft(layout, t, solver), (theta,), (jnp.ones_like(theta),)
-    )
-    R, l, gamma0 = (jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0))
-    kinematics = _kinematics(R, l, gamma0, sol, rates)
-    return _solve(R, kinematics, inputs, *_case_motion(inputs, case))
+    fields = [jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0, theta)]
+    shape = jnp.broadcast_shapes(*(a.shape for a in fields))
+    flat = [jnp.broadcast_to(a, shape).reshape(-1) for a in fields]
+
+    def at(R, l, gamma0, t):  # one layout at one angle: the layout's fields may vary with θ
+        sol, rates = jax.jvp(
+            lambda u: solve_halfshaft(Layout(R, l, gamma0), u, solver), (t,), (jnp.ones_like(t),)
+        )
+        kinematics = _kinematics(R, l, gamma0, sol, rates)
+        return _solve(R, kinematics, inputs, *_case_motion(inputs, case))
+
+    out = jax.vmap(at)(*flat)
+    return jax.tree_util.tree_map(lambda x: x.reshape(shape + x.shape[1:]), out)
 
 
 def _safe_sqrt(x):
