@@ -50,6 +50,7 @@ in N·m, speeds in rad/s and mm/s, power in W.
 import functools
 import math
 from collections.abc import Iterable
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -118,8 +119,9 @@ class ForceInputs:
         transverse_x, transverse_y: force of the pot on the spider across the
             pot axis, fixed frame [N], finite (default 0).
 
-    A pytree: every field is a leaf (traced, differentiable). Concrete fields are
-    checked at construction; the error names the field, the value and the range.
+    A pytree: every field is a leaf (traced, differentiable); each is one number
+    for one layout (``jax.vmap`` over a batch). Concrete fields are checked at
+    construction; the error names the field, the value and the range.
     """
 
     torque: ArrayLike
@@ -151,7 +153,7 @@ class ForceInputs:
         check_finite("transverse_x", self.transverse_x, " N")
         check_finite("transverse_y", self.transverse_y, " N")
 
-    def replace(self, **changes: ArrayLike) -> "ForceInputs":
+    def replace(self, **changes: Any) -> "ForceInputs":
         """A copy with some fields changed, e.g. ``inputs.replace(mu_trunnion=0.05)``."""
         fields = {name: getattr(self, name) for name in self.__dataclass_fields__}
         fields.update(changes)
