@@ -120,7 +120,7 @@ w_irregularity = 1.0
 w_gaf_rms = 1.0
 w_outer_diameter = 1.0
 irregularity_ref = 0.0283  # transmission irregularity of case N [–] (§2.11.3)
-gaf_rms_ref = 1250.0       # GAF RMS of case N at gaf_torque, grease A, stroke model [N]
+gaf_rms_ref = 625.0        # GAF RMS of case N at gaf_torque, grease A, stroke model [N]
 outer_diameter_ref = 94.6  # outer-diameter proxy 2R + d of the workbook joint [mm]
 
 [bounds]

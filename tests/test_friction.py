@@ -7,8 +7,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 import reference
+from scipy.optimize import brentq
 
-from tripodjax import Layout, friction, seed_case
+from tripodjax import Layout, catalogue, friction, seed_case
 from tripodjax.kinematics import period_grid
 
 PARAMS_EXAMPLE = friction.GREASE_A.replace(mu_slp=0.04, lam=0.007)  # the seed's GAF example
@@ -61,7 +62,9 @@ def test_dynamic_friction_inward_and_outward_are_opposite():
 
 @pytest.mark.parametrize("gamma_deg", [0.0, 7.5, 20.0, 45.0])
 def test_printed_gaf_equals_independent_evaluation(gamma_deg):
-    ours = friction.gaf(THETA, math.radians(gamma_deg), 1000.0, 25.0, PARAMS_EXAMPLE)
+    ours = friction.gaf(
+        THETA, math.radians(gamma_deg), 1000.0, 25.0, PARAMS_EXAMPLE, factor="printed"
+    )
     theirs = printed_gaf(THETA, gamma_deg, 1000.0, 25.0, 0.04, 0.007)
     np.testing.assert_allclose(ours, theirs, rtol=1e-12, atol=1e-9)
 
@@ -82,7 +85,7 @@ def test_printed_gaf_is_a_third_order_square_wave_linear_in_torque_and_inverse_i
 
 
 def test_printed_model_keeps_a_lambda_square_wave_at_zero_angle():
-    force = np.asarray(friction.gaf(THETA, 0.0, 1000.0, 25.0, PARAMS_EXAMPLE))
+    force = np.asarray(friction.gaf(THETA, 0.0, 1000.0, 25.0, PARAMS_EXAMPLE, factor="printed"))
     level = 2000.0 * 1000.0 / (3 * 25.0) * 0.007
     np.testing.assert_allclose(np.abs(force[np.abs(force) > 0]), level, rtol=1e-12)
 
@@ -111,7 +114,7 @@ def test_stroke_model_tends_to_the_printed_one_away_from_zero_angle():
 
 def test_halfshaft_gaf_is_the_printed_model_on_the_independent_kinematics():
     layout = seed_case("N")
-    result = friction.gaf_halfshaft(layout, 1000.0, PARAMS_EXAMPLE, n_theta=360)
+    result = friction.gaf_halfshaft(layout, 1000.0, PARAMS_EXAMPLE, n_theta=360, factor="printed")
     theta = np.asarray(period_grid(360, jnp.float64))
     psi, gamma = reference.solve(theta, layout.R, layout.l, layout.gamma0)
     # Lee's roller angle is ψ_i + 90°; γ varies per θ.
@@ -340,3 +343,26 @@ def test_stroke_gaf_vanishes_like_gamma0_squared():
             for g in (1e-8, 1e-7)
         ]
         assert rms[1] / rms[0] == pytest.approx(100.0, rel=1e-3), dtype
+
+
+def test_seed_gaf_example_fits_the_printed_factor_with_a_diameter():
+    """The seed's example (1000 N·m, μ_slp 0.04, λ 0.007: peak 386.4 N, RMS 344.9 N): the printed
+    3.2.15 fits it at γ ≈ 21.8° only with R ≈ 57.7 mm, no tripod's pitch-circle radius (the
+    catalogue's largest is below 40 mm) but a plausible diameter; the statics factor (the default)
+    gives the same numbers with the radius R/2 ≈ 28.9 mm, beside the GI 720's 28.15 mm."""
+    grid = np.arange(7200) * (2 * np.pi / 3 / 7200) + 1e-5  # one period, off the reversals
+
+    def peak_rms(gamma, R, factor):
+        g = np.asarray(friction.gaf(grid, gamma, 1000.0, R, PARAMS_EXAMPLE, factor=factor))
+        return np.abs(g).max(), np.sqrt(np.mean(g**2))
+
+    ratio = 386.4 / 344.9
+    gamma = brentq(lambda g: np.divide(*peak_rms(g, 1.0, "printed")) - ratio, 0.2, 0.6, xtol=1e-12)
+    R_printed = peak_rms(gamma, 1.0, "printed")[1] / 344.9
+    assert math.degrees(gamma) == pytest.approx(21.8, abs=0.05)
+    assert R_printed == pytest.approx(57.7, abs=0.05)
+    for R, factor in ((R_printed, "printed"), (R_printed / 2, "statics")):
+        peak, rms = peak_rms(gamma, R, factor)
+        assert peak == pytest.approx(386.4, abs=0.05) and rms == pytest.approx(344.9, abs=0.05)
+    radii = [size["R"] for table in (catalogue.GE, catalogue.GI) for size in table.values()]
+    assert max(radii) < 40.0 < R_printed and min(radii) < R_printed / 2 < max(radii)

@@ -25,7 +25,7 @@ from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
 import tripodjax as tj
-from tripodjax import catalogue, friction, hertz, life, outboard, shaft
+from tripodjax import catalogue, forces, friction, hertz, life, outboard, shaft
 
 FUZZ = settings(
     max_examples=25,
@@ -382,6 +382,7 @@ BOUNDARY = {
             "model": "choice",
             "width": "positive",
             "params": "object",
+            "factor": "choice",
         },
         "{}",
     ),
@@ -396,6 +397,7 @@ BOUNDARY = {
             "model": "choice",
             "width": "positive",
             "fidelity": "choice",
+            "factor": "choice",
         },
         "{}",
     ),
@@ -469,7 +471,42 @@ BOUNDARY = {
     "GAFInputs": (
         tj.GAFInputs,
         dict(torque=100.0),
-        {"torque": "non_negative", "model": "choice", "width": "positive", "params": "object"},
+        {
+            "torque": "non_negative",
+            "model": "choice",
+            "width": "positive",
+            "params": "object",
+            "factor": "choice",
+        },
+        "{}",
+    ),
+    "forces.ForceInputs": (
+        forces.ForceInputs,
+        dict(torque=100.0),
+        {
+            "torque": "non_negative",
+            "params": "object",
+            "mu_trunnion": "non_negative",
+            "contact_angle": "helix_angle",  # 0 ≤ α < π/2
+            "speed": "finite",
+            "plunge_speed": "finite",
+            "lts_speed": "finite",
+            "width": "positive",
+            "transverse_x": "finite",
+            "transverse_y": "finite",
+        },
+        "{}",
+    ),
+    "forces.roller_forces": (
+        forces.roller_forces,
+        dict(theta=np.linspace(0.0, 1.0, 4), case="running"),
+        {"layout": "object", "inputs": "object", "solver": "choice", "case": "choice"},
+        "{}",
+    ),
+    "forces.forces_halfshaft": (
+        forces.forces_halfshaft,
+        dict(n_theta=36),
+        {"layout": "object", "inputs": "object", "n_theta": "count", "solver": "choice"},
         "{}",
     ),
 }
@@ -483,6 +520,7 @@ _DEFAULT_OBJECTS = {
     "params": lambda: friction.GREASE_A,
     "friction_params": lambda: friction.GREASE_A,
     "gaf": lambda: friction.GAFInputs(100.0),
+    "inputs": lambda: forces.ForceInputs(100.0),
 }
 
 CASES = [

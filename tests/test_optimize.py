@@ -52,7 +52,7 @@ def test_evaluate_against_the_physics_computed_independently():
         caps = hertz.capacities(
             43.5, 25.55, conformity=1.002, P_s=2350.0, P_d=1347.0, P_sd=2005.0, C_s=1.2
         )
-    expected = irr / 0.0283 + gaf / 1250.0 + (2 * 25.55 + 43.5) / 94.6
+    expected = irr / 0.0283 + gaf / 625.0 + (2 * 25.55 + 43.5) / 94.6
     assert out["objective"] == pytest.approx(expected, rel=1e-10)
     assert out["quantities"]["gaf_rms"] == pytest.approx(gaf, rel=1e-10)
     assert out["constraints"]["static_capacity"] == pytest.approx(

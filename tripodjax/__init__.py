@@ -10,6 +10,7 @@ only at the user-facing edge). Physics layers, after the seed thesis:
 - [`tripodjax.motion`][tripodjax.motion]: velocities and accelerations, exact and first order (§2.11).
 - [`tripodjax.sweep`][tripodjax.sweep]: batch sweeps over layouts, chunked and sharded.
 - [`tripodjax.friction`][tripodjax.friction]: friction and the generated axial force, GAF (§3.2).
+- [`tripodjax.forces`][tripodjax.forces]: the rollers' forces from statics: GAF, LTS, complementary torque (§3.1).
 - [`tripodjax.hertz`][tripodjax.hertz]: Hertz contact, torque capacities, minimum size (§4.2).
 - [`tripodjax.life`][tripodjax.life]: load spectrum, working conditions, angle derating, Miner's rule (§4.2).
 - [`tripodjax.vehicle`][tripodjax.vehicle]: the customer's vehicle → the joint's load cycles (§4.3).
@@ -52,9 +53,11 @@ _ATTRIBUTES = {
     "sweep": "tripodjax.sweep",
     "map_chunks": "tripodjax.sweep",
     "GAFInputs": "tripodjax.friction",
+    "ForceInputs": "tripodjax.forces",
 }
 _SUBMODULES = (
     "catalogue",
+    "forces",
     "friction",
     "halfshaft",
     "hertz",
@@ -74,6 +77,7 @@ _SUBMODULES = (
 if typing.TYPE_CHECKING:  # what the lazy attributes are, for type checkers and the docs
     from tripodjax import (
         catalogue,
+        forces,
         friction,
         hertz,
         joint,
@@ -84,6 +88,7 @@ if typing.TYPE_CHECKING:  # what the lazy attributes are, for type checkers and 
         solvers,
         vehicle,
     )
+    from tripodjax.forces import ForceInputs
     from tripodjax.friction import GAFInputs
     from tripodjax.halfshaft import HalfshaftSolution, solve_halfshaft
     from tripodjax.kinematics import KinematicMetrics, kinematic_metrics
@@ -133,6 +138,7 @@ __all__ = [
     "RESULTS",
     "Analytic",
     "ClosedForm",
+    "ForceInputs",
     "GAFInputs",
     "Newton",
     "SolverError",
@@ -145,6 +151,7 @@ __all__ = [
     "TABLE_2_1",
     "catalogue",
     "first_order_motion",
+    "forces",
     "friction",
     "halfshaft_motion",
     "hertz",

@@ -14,7 +14,16 @@ The roller angle θ of the fits is the Lee model's: a roller moves inward for
     μ_GAF,i = sgn(sin(θ_i + 90°)) |μ_dyn(θ_i)|                                  (3.2.14)
     GAF = (2 T_d / (3R)) Σ_i μ_GAF,i                                            (3.2.15)
 
-Units: torque N·m, R mm (GAF = 2000 T_d Σ μ / (3 R) in N), angles rad.
+The factor of 3.2.15 (``factor``): statics gives each roller the normal force
+T_d/(3R) (R the pitch-circle radius; [`tripodjax.forces`][tripodjax.forces]
+solves it on the exact kinematics), so a friction coefficient μ_i per roller
+makes GAF = (T_d/(3R)) Σ_i μ_i: ``factor="statics"``, the default. The printed
+2 T_d/(3R) is twice that; it reproduces the seed's example (386.4 N peak,
+344.9 N RMS) at γ ≈ 21.8° with R ≈ 57.7 mm, a plausible pitch-circle *diameter*:
+3.2.15 reads right with R the diameter. ``factor="printed"`` keeps it, for
+reproduction.
+
+Units: torque N·m, R mm (GAF = 1000 T_d Σ μ / (3 R) in N; twice that printed), angles rad.
 """
 
 import dataclasses
@@ -43,6 +52,7 @@ from tripodjax.layout import Layout, check_layout
 from tripodjax.results import RESULTS, code_where, worst
 
 GAF_MODELS = ("printed", "stroke")
+FACTORS = ("statics", "printed")
 STROKES = ("in", "out")
 DEFAULT_STROKE_WIDTH = 0.01  # [–] width of the smooth stroke sign, in units of tan γ · cos θ
 
@@ -204,7 +214,12 @@ def _stroke_weight(theta_i, stroke_rate_i, model, width):
     return jnp.tanh(stroke_rate_i / width)
 
 
-def _gaf_force(theta_i, gamma, stroke_rate_i, torque, R, params, model, width):
+def _load_per_roller(torque, R, factor):
+    """The normal load of a roller by which 3.2.15 multiplies Σ μ_i [N]: T/(3R), or 2T/(3R) printed."""
+    return (2000.0 if factor == "printed" else 1000.0) * torque / (3.0 * R)
+
+
+def _gaf_force(theta_i, gamma, stroke_rate_i, torque, R, params, model, width, factor):
     """GAF [N] from the roller angles θ_i (…, 3), γ and the rollers' normalised stroke rates.
 
     A non-finite R or width (inside jit, where nothing is checked) gives NaN,
@@ -212,7 +227,7 @@ def _gaf_force(theta_i, gamma, stroke_rate_i, torque, R, params, model, width):
     """
     magnitude = jnp.abs(mu_dyn(theta_i, gamma[..., None], params, "in"))
     mu_gaf = _stroke_weight(theta_i, stroke_rate_i, model, width) * magnitude
-    force = 2000.0 * torque / (3.0 * R) * jnp.sum(mu_gaf, axis=-1)
+    force = _load_per_roller(torque, R, factor) * jnp.sum(mu_gaf, axis=-1)
     finite = jnp.isfinite(R) & jnp.isfinite(width)
     return jnp.where(finite, force, jnp.nan)
 
@@ -275,9 +290,10 @@ def _stroke_sum(sol, rates, R, l, gamma0, params, width):
     return jnp.where(jnp.max(jnp.abs(x), axis=-1) < 1.0, split, direct)
 
 
-def _check_model(model, width):
+def _check_model(model, width, factor):
     check_choice("model", model, GAF_MODELS)
     check_positive(width=width)
+    check_choice("factor", factor, FACTORS)
 
 
 def _check_load(torque, R):
@@ -297,6 +313,7 @@ def gaf(
     params: FrictionParams = GREASE_A,
     model: str = "printed",
     width: float = DEFAULT_STROKE_WIDTH,
+    factor: str = "statics",
 ) -> jax.Array:
     """Generated axial force [N] at roller-1 angle θ [rad] (3.2.14–3.2.15).
 
@@ -316,6 +333,10 @@ def gaf(
             i.e. within about width/tan γ rad of each stroke reversal.
         width: smoothing width of the stroke model [–] (default 0.01: at
             γ = 20° the sign ramps over ±1.6° of roller angle).
+        factor: ``"statics"`` (default) — GAF = (T_d/(3R)) Σ μ_GAF,i, each
+            roller loaded by T_d/(3R) as statics gives; ``"printed"`` — the
+            seed's 3.2.15 as printed, 2 T_d/(3R), twice as large (right if its R
+            is the pitch-circle diameter; see the module).
 
     Differentiable w.r.t. γ, torque, R and every FrictionParams field.
     """
@@ -323,11 +344,11 @@ def gaf(
     check_finite("gamma", gamma, " [rad]")
     _check_load(torque, R)
     _check_params(params)
-    _check_model(model, width)
+    _check_model(model, width, factor)
     theta_i = joint.roller_angles(jnp.asarray(theta, jnp.result_type(theta, gamma, 0.0)))
     gamma = jnp.broadcast_to(jnp.asarray(gamma, theta_i.dtype), theta_i.shape[:-1])
     stroke_rate = jnp.tan(gamma)[..., None] * jnp.cos(theta_i)
-    return _gaf_force(theta_i, gamma, stroke_rate, torque, R, params, model, width)
+    return _gaf_force(theta_i, gamma, stroke_rate, torque, R, params, model, width, factor)
 
 
 def _safe_rms(x, axis=-1):
@@ -381,9 +402,11 @@ class GAFInputs:
         params: [`FrictionParams`][tripodjax.friction.FrictionParams] (default grease A).
         model: ``"stroke"`` (default) or ``"printed"``, see [`gaf`][tripodjax.friction.gaf].
         width: smoothing width of the stroke model [–], > 0.
+        factor: ``"statics"`` (default) or ``"printed"`` (the seed's 2 T_d/(3R)),
+            see [`gaf`][tripodjax.friction.gaf].
 
     A pytree: ``torque``, ``params`` and ``width`` are leaves (traced,
-    differentiable), ``model`` is static. Checked at construction (the error
+    differentiable), ``model`` and ``factor`` are static. Checked at construction (the error
     names the field); JAX's own rebuilding skips the checks.
     """
 
@@ -391,22 +414,24 @@ class GAFInputs:
     params: FrictionParams = GREASE_A
     model: str = "stroke"
     width: ArrayLike = DEFAULT_STROKE_WIDTH
+    factor: str = "statics"
 
     def __post_init__(self) -> None:
         check_non_negative("torque", self.torque, " N·m")
         _check_params(self.params)
-        _check_model(self.model, self.width)
+        _check_model(self.model, self.width, self.factor)
 
 
 def _flatten_gaf_inputs(g):
-    return (g.torque, g.params, g.width), g.model
+    return (g.torque, g.params, g.width), (g.model, g.factor)
 
 
-def _unflatten_gaf_inputs(model, children):
+def _unflatten_gaf_inputs(static, children):
     obj = object.__new__(GAFInputs)  # no checks: JAX rebuilds with tracers and placeholders
     for name, child in zip(("torque", "params", "width"), children, strict=True):
         object.__setattr__(obj, name, child)
-    object.__setattr__(obj, "model", model)
+    object.__setattr__(obj, "model", static[0])
+    object.__setattr__(obj, "factor", static[1])
     return obj
 
 
@@ -427,14 +452,15 @@ def gaf_from_revolution(
     inside jit).
     """
     torque, params, model, width = inputs.torque, inputs.params, inputs.model, inputs.width
+    factor = inputs.factor
     dtype = sol.theta.dtype
     R, l, gamma0 = (jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0))
     if model == "printed":
         theta_lee = joint.roller_angles(sol.psi) + 0.5 * jnp.pi
-        force = _gaf_force(theta_lee, sol.gamma, None, torque, R, params, model, width)
+        force = _gaf_force(theta_lee, sol.gamma, None, torque, R, params, model, width, factor)
     else:
         total = _stroke_sum(sol, rates, R, l, gamma0, params, width)
-        force = 2000.0 * torque / (3.0 * R) * total
+        force = _load_per_roller(torque, R, factor) * total
         force = jnp.where(jnp.isfinite(R) & jnp.isfinite(width), force, jnp.nan)
     rms = _safe_rms(force)
     return GAFResult(
@@ -457,6 +483,7 @@ def gaf_halfshaft(
     solver: solvers.SolverLike = "newton",
     *,
     fidelity: str | None | solvers._Unset = solvers._UNSET,
+    factor: str = "statics",
 ) -> GAFResult:
     """GAF of a halfshaft over a revolution, from the instantaneous γ(θ) and roller angles.
 
@@ -471,16 +498,17 @@ def gaf_halfshaft(
 
     Differentiable w.r.t. the layout (R, l, γ0), the torque and every
     FrictionParams field, with derivatives of the solve from the implicit
-    function theorem.
+    function theorem. ``factor``: ``"statics"`` (default) or ``"printed"``, see
+    [`gaf`][tripodjax.friction.gaf].
     """
     check_layout(layout)
     _check_load(torque, layout.R)
     _check_params(params)
-    _check_model(model, width)
+    _check_model(model, width, factor)
     solver = solvers.resolve_legacy(solver, fidelity)  # fidelity: the older spelling
     _check_n_theta(n_theta)
     return _gaf_halfshaft(
-        layout, GAFInputs(torque, params, model, width), n_theta=n_theta, solver=solver
+        layout, GAFInputs(torque, params, model, width, factor), n_theta=n_theta, solver=solver
     )
 
 

@@ -1,0 +1,451 @@
+"""The force model (tripodjax.forces): statics against an independent solve, limits, orders, gradients."""
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+import reference
+
+from tripodjax import Layout, forces, friction, seed_case
+
+GREASE_A = friction.GREASE_A  # μ 0.06, λ 0.007
+NO_FRICTION = GREASE_A.replace(mu_slp=0.0, lam=0.0)
+CASE_N = seed_case("N")  # R 25, l 500, γ0 20°
+SINGLE = Layout(25.0, 1e7, math.radians(20.0))  # the shaft too long to wobble: γ = γ0, Δ = 0
+
+
+def independent_statics(theta, R, l, gamma0, torque, mu, lam, mu_t, alpha, speed, plunge):
+    """The brief's six equations per angle in NumPy, with sharp signs, on fsolve's kinematics.
+
+    Geometry from the seed's printed formulas: the spider frame's axes X', Y' (2.3.5, τ = θ − ψ),
+    the spider centre (a, b, c) (2.5.13, c = l(cos γ0 − cos γ)), the roller centres
+    (R cos θ_k, R sin θ_k, Z_k) (2.6.2); the trunnion axis from the spider centre to the roller
+    centre; the stroke and trunnion rates by central differences of the fsolve solution.
+    Returns N (n, 3), Q (n, 3), the moment Σ C_k × P_k [N·m] (n, 3) and the axial force (n,).
+    """
+
+    def geometry(t):
+        psi, gamma = reference.solve(t, R, l, gamma0)
+        out = []
+        for th, p, g in zip(np.atleast_1d(t), psi, gamma, strict=True):
+            tau = th - p
+            e = 0.5 * R * (1 - math.cos(g)) / math.cos(g)
+            a = e * (
+                math.sin(3 * p) * math.sin(tau) - math.cos(g) * math.cos(3 * p) * math.cos(tau)
+            )
+            b = e * (
+                -math.sin(3 * p) * math.cos(tau) - math.cos(g) * math.cos(3 * p) * math.sin(tau)
+            )
+            c = l * (math.cos(gamma0) - math.cos(g))
+            centre = np.array([a, b, c])
+            rollers = []
+            for k in range(3):
+                tk, pk = th + 2 * math.pi * k / 3, p + 2 * math.pi * k / 3
+                z = c - 0.5 * R * math.tan(g) * (
+                    2 * math.cos(pk) + (1 - math.cos(g)) * math.cos(3 * p)
+                )
+                rollers.append(np.array([R * math.cos(tk), R * math.sin(tk), z]))
+            out.append((centre, np.array(rollers), tau, g))
+        return out
+
+    step = 1e-6
+    here, ahead, behind = geometry(theta), geometry(theta + step), geometry(theta - step)
+    n_out, q_out, m_out, axial_out = [], [], [], []
+    for i, th in enumerate(np.atleast_1d(theta)):
+        centre, rollers, _, _ = here[i]
+        z_rate = (ahead[i][1][:, 2] - behind[i][1][:, 2]) / (2 * step)
+        r_rate = (
+            np.linalg.norm(ahead[i][1] - ahead[i][0], axis=1)
+            - np.linalg.norm(behind[i][1] - behind[i][0], axis=1)
+        ) / (2 * step)
+        columns, rows_rhs = [], []
+        a_mat = np.zeros((6, 6))
+        for k in range(3):
+            tk = th + 2 * math.pi * k / 3
+            e_r = np.array([math.cos(tk), math.sin(tk), 0.0])
+            e_t = np.array([-math.sin(tk), math.cos(tk), 0.0])
+            axis = (rollers[k] - centre) / np.linalg.norm(rollers[k] - centre)
+            n = math.cos(alpha) * e_t + math.sin(alpha) * e_r
+            t = np.cross(axis, n)
+            t /= np.linalg.norm(t)
+            v = (z_rate[k] * speed + plunge) * np.array([0.0, 0.0, 1.0])
+            u = v @ t
+            slip = v - u * t
+            f = n - mu * slip / np.linalg.norm(slip) - lam * np.sign(u) * t
+            columns.append((f, e_r, rollers[k]))
+            a_mat[k, k] = f @ axis - mu_t * np.sign(r_rate[k] * speed)
+            a_mat[k, 3 + k] = e_r @ axis
+            for j, vec in ((k, f), (3 + k, e_r)):
+                a_mat[3, j] = np.cross(rollers[k], vec)[2]
+                a_mat[4, j], a_mat[5, j] = vec[0], vec[1]
+        rhs = np.array([0.0, 0.0, 0.0, 1000.0 * torque, 0.0, 0.0])
+        x = np.linalg.solve(a_mat, rhs)
+        forces_k = [x[k] * f + x[3 + k] * e_r for k, (f, e_r, _) in enumerate(columns)]
+        moment = sum(np.cross(c, p) for (_, _, c), p in zip(columns, forces_k, strict=True))
+        n_out.append(x[:3])
+        q_out.append(x[3:])
+        m_out.append(moment / 1000.0)
+        axial_out.append(sum(p[2] for p in forces_k))
+        rows_rhs.append(rhs)
+    return np.array(n_out), np.array(q_out), np.array(m_out), np.array(axial_out)
+
+
+THETA = np.radians([10.0, 25.0, 50.0, 95.0])  # off every roller's stroke reversal and ψ_k = 90°
+
+
+def test_frictionless_statics_against_the_independent_solve():
+    layout = Layout.from_degrees(28.0, 450.0, 22.0)
+    inputs = forces.ForceInputs(800.0, NO_FRICTION)
+    ours = forces.roller_forces(layout, THETA, inputs)
+    n, q, m, axial = independent_statics(THETA, 28.0, 450.0, layout.gamma0, 800.0, 0, 0, 0, 0, 1, 0)
+    np.testing.assert_allclose(ours.normal, n, rtol=1e-9)
+    np.testing.assert_allclose(ours.radial, q, rtol=1e-7, atol=1e-8)
+    np.testing.assert_allclose(ours.moment, m, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(ours.axial, 0.0, atol=1e-9)
+    np.testing.assert_allclose(axial, 0.0, atol=1e-9)
+
+
+@pytest.mark.parametrize("plunge", [0.0, 300.0])
+def test_friction_statics_against_the_independent_solve(plunge):
+    """μ, λ, trunnion friction and a contact angle, sharp signs (width 1e-9), running and plunging."""
+    layout = Layout.from_degrees(25.0, 500.0, 20.0)
+    inputs = forces.ForceInputs(
+        1000.0, GREASE_A, mu_trunnion=0.04, contact_angle=0.2, speed=50.0, lts_speed=50.0,
+        plunge_speed=plunge, width=1e-9,
+    )  # fmt: skip
+    case = "running" if plunge == 0.0 else "lts"
+    ours = forces.roller_forces(layout, THETA, inputs, case=case)
+    n, q, m, axial = independent_statics(
+        THETA, 25.0, 500.0, layout.gamma0, 1000.0, 0.06, 0.007, 0.04, 0.2, 50.0, plunge
+    )
+    np.testing.assert_allclose(ours.normal, n, rtol=1e-7)
+    np.testing.assert_allclose(ours.radial, q, rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(ours.moment, m, rtol=1e-7, atol=1e-7)
+    np.testing.assert_allclose(ours.axial, axial, rtol=1e-7, atol=1e-7)
+
+
+def test_without_friction_the_couple_is_t_tan_half_gamma_in_the_plane_of_the_shafts():
+    """|Σ C_k × P_k|⊥ = T tan(γ/2) at every angle (instantaneous γ), along τ = θ − ψ: the plane of
+    the two shafts. The loads sum to T/R exactly but are not T/(3R) each: the spider centre's
+    eccentricity S shifts them, N_k = (T/3R)(1 + S·e_r,k/R) to first order in e/R."""
+    theta = np.linspace(0, 2 * np.pi, 37)
+    f = forces.roller_forces(CASE_N, theta, forces.ForceInputs(1000.0, NO_FRICTION))
+    psi, gamma = reference.solve(theta, 25.0, 500.0, CASE_N.gamma0)
+    couple = np.hypot(f.moment[:, 0], f.moment[:, 1])
+    np.testing.assert_allclose(couple, 1000.0 * np.tan(gamma / 2), rtol=1e-12)
+    direction = np.arctan2(f.moment[:, 1], f.moment[:, 0])
+    np.testing.assert_allclose(direction, theta - psi, atol=1e-11)
+    np.testing.assert_allclose(f.moment[:, 2], 1000.0, rtol=1e-13)
+    np.testing.assert_allclose(np.sum(f.normal, axis=1), 1e6 / 25.0, rtol=1e-13)
+    nominal = 1e6 / 75.0
+    assert np.max(np.abs(f.normal / nominal - 1)) > 0.03  # the brief's "N_k = T/(3R) exactly": no
+    tau = theta - psi
+    e = 0.5 * 25 * (1 - np.cos(gamma)) / np.cos(gamma)
+    a = e * (np.sin(3 * psi) * np.sin(tau) - np.cos(gamma) * np.cos(3 * psi) * np.cos(tau))
+    b = e * (-np.sin(3 * psi) * np.cos(tau) - np.cos(gamma) * np.cos(3 * psi) * np.sin(tau))
+    theta_k = theta[:, None] + np.array([0, 2, 4]) * np.pi / 3
+    first_order = nominal * (1 + (a[:, None] * np.cos(theta_k) + b[:, None] * np.sin(theta_k)) / 25)
+    np.testing.assert_allclose(f.normal, first_order, rtol=3 * (e.max() / 25) ** 2)
+
+
+def _orders(x, axis=0):
+    """Amplitudes of the rotating orders 0 … of samples over one full revolution."""
+    spectrum = np.abs(np.fft.rfft(x, axis=axis)) / x.shape[axis]
+    return 2 * spectrum
+
+
+def test_only_orders_that_are_multiples_of_three_with_equal_rollers():
+    theta = np.arange(360) * 2 * np.pi / 360
+    inputs = forces.ForceInputs(1000.0, GREASE_A, mu_trunnion=0.03)
+    f = forces.roller_forces(CASE_N, theta, inputs)
+    for signal in (f.axial, f.moment[:, 0], f.moment[:, 1], f.power):
+        orders = _orders(np.asarray(signal))
+        others = np.delete(orders, np.arange(0, len(orders), 3))
+        assert others.max() < 1e-9 * orders.max()
+    assert _orders(np.asarray(f.axial))[3] > 100.0
+
+
+def _quantities(layout, inputs, n_theta=360, solver="newton"):
+    return forces.forces_halfshaft(layout, inputs, n_theta, solver)
+
+
+def test_gaf_against_the_first_order_formula_and_the_brief():
+    """First order (T/3R) Σ sgn(sin ψ_k)[μ sin γ |cos ψ_k| + λ]: third order (2/π)μT sin γ/R +
+    (4/3π)λT/R = 641.4 N at 1000 N·m, R 25, 20°, μ 0.06, λ 0.007. The exact geometry with equal
+    loads T/(3R) gives the brief's 631 N; the statics loads the roller that strokes outward less
+    (the eccentricity's ±3 % at 20°, correlated with the stroke direction) and gives about 4 % less."""
+    T, R, g = 1000.0, 25.0, math.radians(20.0)
+    first = (2 / math.pi) * 0.06 * T * 1000 * math.sin(g) / R + 4 / (
+        3 * math.pi
+    ) * 0.007 * T * 1000 / R
+    assert first == pytest.approx(641.4, abs=0.05)
+    r = _quantities(SINGLE, forces.ForceInputs(T, GREASE_A, width=1e-6), 360)
+    f = r.running
+    equal = np.sum(f.force[..., 2] / f.normal, -1) * 1000 * T / (3 * R)
+    assert 2 * np.abs(np.fft.rfft(equal)[1]) / len(equal) == pytest.approx(631.0, abs=1.0)
+    assert 0.94 < float(r.gaf_third_order) / first < 0.97
+    # LTS: (T/R)[(2/π)μ sin γ + λ] at first order; the μ part ripples ±7 % at order 6.
+    lts_first = T * 1000 / R * ((2 / math.pi) * 0.06 * math.sin(g) + 0.007)
+    assert float(r.lts_mean) == pytest.approx(lts_first, rel=0.03)
+    mu_only = _quantities(SINGLE, forces.ForceInputs(T, GREASE_A.replace(lam=0.0)))
+    ripple_first = (2 - math.sqrt(3)) / 2 / (6 / math.pi)  # Σ|cos ψ_k|: 2 … √3, mean 6/π
+    assert ripple_first == pytest.approx(0.070, abs=5e-4)
+    assert float(mu_only.lts_ripple / mu_only.lts_mean) == pytest.approx(ripple_first, rel=0.15)
+
+
+def test_gaf_proportional_to_t_over_r_and_lts_to_t():
+    inputs = forces.ForceInputs(600.0, GREASE_A, mu_trunnion=0.02)
+    base = _quantities(CASE_N, inputs, 120)
+    double_t = _quantities(CASE_N, inputs.replace(torque=1200.0), 120)
+    double_size = _quantities(Layout(50.0, 1000.0, CASE_N.gamma0), inputs, 120)  # same angles
+    for name in ("gaf_rms", "gaf_third_order", "lts_mean", "lts_ripple"):
+        assert float(getattr(double_t, name)) == pytest.approx(
+            2 * float(getattr(base, name)), rel=1e-12
+        )
+        assert float(getattr(double_size, name)) == pytest.approx(
+            0.5 * float(getattr(base, name)), rel=1e-10
+        )
+    # The complementary torque ∝ T and does not depend on the size.
+    assert float(double_size.complementary_torque_steady) == pytest.approx(
+        float(base.complementary_torque_steady), rel=1e-10
+    )
+
+
+def test_gaf_vanishing_with_the_layout_angle():
+    """Above the smoothing width the sliding part ∝ sin γ0 and the rolling part tends to the sharp
+    λT/(3R) square wave (rolling resistance needs no stroke amplitude in this model); below it
+    (γ0 ≪ width) GAF ∝ γ0³: every sign is linear there, the rollers' first-order stroke rates
+    (∝ γ0) cancel in the sum, and what is left — the common stroke rate d(Z*)/dθ, the load shift
+    of the eccentricity (∝ γ0²) times a stroke rate, the slip angle (∝ γ0) times a stroke sign
+    times μ sin β — is of third order."""
+    mu_only = forces.ForceInputs(1000.0, GREASE_A.replace(lam=0.0))
+    lam_only = forces.ForceInputs(1000.0, GREASE_A.replace(mu_slp=0.0))
+
+    def third(gamma0, inputs):
+        layout = Layout(25.0, 1e7, gamma0)
+        return float(_quantities(layout, inputs, 360).gaf_third_order)
+
+    g1, g2 = math.radians(5.0), math.radians(10.0)
+    assert third(g2, mu_only) / third(g1, mu_only) == pytest.approx(
+        math.sin(g2) / math.sin(g1), rel=0.05
+    )
+    sharp = 4 / (3 * math.pi) * 0.007 * 1e6 / 25.0
+    assert third(math.radians(10.0), lam_only) == pytest.approx(sharp, rel=0.08)
+    small = (1e-4, 2e-4)
+    both = forces.ForceInputs(1000.0, GREASE_A)
+    assert third(small[1], both) / third(small[0], both) == pytest.approx(8.0, rel=1e-3)
+    assert third(0.0, both) == 0.0
+
+
+def test_complementary_torque_orders_and_their_sources():
+    """Friction lowers the steady couple and adds the 6× part ∝ μ; the 3× part in the fixed frame is
+    the halfshaft's wobble (γ ripple, Δ), ∝ R/l: it is there without friction and vanishes with a
+    shaft too long to wobble, whatever the eccentricity, the unequal loads or the trunnion friction."""
+    none = _quantities(CASE_N, forces.ForceInputs(1000.0, NO_FRICTION))
+    mu1 = _quantities(CASE_N, forces.ForceInputs(1000.0, GREASE_A.replace(lam=0.0, mu_slp=0.03)))
+    mu2 = _quantities(CASE_N, forces.ForceInputs(1000.0, GREASE_A.replace(lam=0.0)))
+    assert float(mu2.complementary_torque_steady) < float(none.complementary_torque_steady)
+    assert float(none.complementary_torque_sixth_order) < 1e-3
+    assert float(mu2.complementary_torque_sixth_order) == pytest.approx(
+        2 * float(mu1.complementary_torque_sixth_order), rel=0.02
+    )
+    # The frictionless 3× is that of T tan(γ/2) along τ, from the independent kinematics.
+    theta = np.arange(120) * (2 * np.pi / 3) / 120
+    psi, gamma = reference.solve(theta, 25.0, 500.0, CASE_N.gamma0)
+    couple = 1000.0 * np.tan(gamma / 2)
+    spectra = [_orders(couple * np.cos(theta - psi)), _orders(couple * np.sin(theta - psi))]
+    assert float(none.complementary_torque_third_order) == pytest.approx(
+        math.hypot(spectra[0][1], spectra[1][1]), rel=1e-9
+    )
+    for inputs in (
+        forces.ForceInputs(1000.0, GREASE_A),
+        forces.ForceInputs(1000.0, NO_FRICTION, mu_trunnion=0.05),
+    ):
+        near = _quantities(CASE_N, inputs)
+        far = _quantities(Layout(25.0, 5e4, CASE_N.gamma0), inputs)
+        assert float(near.complementary_torque_third_order) == pytest.approx(
+            float(none.complementary_torque_third_order), rel=0.03
+        )
+        assert float(far.complementary_torque_third_order) < 0.02 * float(
+            near.complementary_torque_third_order
+        )
+
+
+def test_roller_loads_and_power():
+    r = _quantities(CASE_N, forces.ForceInputs(1000.0, GREASE_A, speed=100.0))
+    e_max = 25.0 * math.sin(0.5 * float(CASE_N.gamma0)) ** 2 / math.cos(float(CASE_N.gamma0))
+    assert 1.0 < float(r.roller_load_ratio) < 1.0 + 2 * e_max / 25.0
+    assert float(r.friction_power) > 0
+    slower = _quantities(CASE_N, forces.ForceInputs(1000.0, GREASE_A, speed=50.0))
+    assert float(slower.friction_power) == pytest.approx(0.5 * float(r.friction_power), rel=1e-12)
+    assert float(slower.gaf_rms) == pytest.approx(float(r.gaf_rms), rel=1e-12)
+
+
+def test_statics_settles_the_factor_of_the_printed_gaf():
+    """The mean normal load per roller is T/(3R) exactly (Σ N_k R = T at α = 0), so a friction μ_i
+    per roller gives GAF = (T/3R) Σ μ_i, the default; the printed 3.2.15 is twice it."""
+    f = forces.roller_forces(CASE_N, THETA, forces.ForceInputs(1000.0, GREASE_A))
+    np.testing.assert_allclose(np.mean(f.normal, axis=1), 1e6 / (3 * 25.0), rtol=1e-13)
+    theta = np.linspace(0.1, 6.0, 50)
+    g = math.radians(20.0)
+    statics = np.asarray(friction.gaf(theta, g, 1000.0, 25.0))
+    printed = np.asarray(friction.gaf(theta, g, 1000.0, 25.0, factor="printed"))
+    np.testing.assert_allclose(printed, 2 * statics, rtol=1e-14)
+
+
+def test_force_model_fluctuation_against_lee_at_15_degrees():
+    """Lee's fluctuating friction (γ°/15)(C_d1 μ_slp − C_d2)|sin θ| (3.2.11) is the force model's
+    μ sin γ |cos ψ| at 15° with grease A (0.0156 against 0.0155); their GAF (statics factor, the
+    constant parts λ, μ_S/R removed) agree to the eccentricity's load shift (≈ 2 %)."""
+    g = math.radians(15.0)
+    lee_slope = (0.4 * 0.06 - 8.4e-3) * 15 / 15
+    assert lee_slope == pytest.approx(0.06 * math.sin(g), rel=0.01)
+    lee_params = GREASE_A.replace(lam=0.0, R_s=0.0)
+    grid = np.arange(360) * 2 * np.pi / 360 + 1e-5
+    lee = np.asarray(friction.gaf(grid, g, 1000.0, 25.0, lee_params))
+    ours = _quantities(
+        Layout(25.0, 1e7, g), forces.ForceInputs(1000.0, lee_params, width=1e-6), 3600
+    )
+    lee_third = _orders(lee)[3]
+    assert float(ours.gaf_third_order) == pytest.approx(lee_third, rel=0.03)
+    assert float(ours.gaf_rms) == pytest.approx(np.sqrt(np.mean(lee**2)), rel=0.03)
+
+
+def test_every_solver_level_and_vmap_over_layouts():
+    inputs = forces.ForceInputs(1000.0, GREASE_A, mu_trunnion=0.02)
+    newton = _quantities(CASE_N, inputs, 120)
+    for solver, tol in (("analytic", 1e-5), ("closed_form", 2e-3)):
+        other = _quantities(CASE_N, inputs, 120, solver)
+        for name in forces.QUANTITIES:
+            # a small order against the largest of its family
+            family = "complementary_torque_steady" if "torque" in name else "gaf_third_order"
+            scale = float(getattr(newton, family)) if "order" in name else 0.0
+            assert float(getattr(other, name)) == pytest.approx(
+                float(getattr(newton, name)), rel=tol, abs=tol * scale
+            ), (solver, name)
+    layouts = Layout(
+        jnp.array([25.0, 30.0]), jnp.array([500.0, 450.0]), jnp.radians(jnp.array([20.0, 12.0]))
+    )
+
+    def one(layout):
+        from tripodjax.kinematics import revolution
+
+        sol, rates = revolution(layout, 120, "newton", with_rates=True)
+        return forces.force_quantities(layout, sol, rates, inputs, ("gaf_third_order", "lts_mean"))
+
+    batch = jax.vmap(one)(layouts)
+    for i in range(2):
+        single = _quantities(
+            Layout(*(float(getattr(layouts, n)[i]) for n in ("R", "l", "gamma0"))), inputs, 120
+        )
+        for name in ("gaf_third_order", "lts_mean"):
+            assert float(batch[name][i]) == pytest.approx(float(getattr(single, name)), rel=1e-12)
+
+
+def test_float32_against_float64(float32_default):
+    inputs = forces.ForceInputs(1000.0, GREASE_A, mu_trunnion=0.02)
+    f32 = _quantities(
+        Layout(np.float32(25.0), np.float32(500.0), np.float32(math.radians(20))), inputs, 120
+    )
+    assert f32.gaf_rms.dtype == jnp.float32
+    with jax.enable_x64(True):
+        f64 = _quantities(CASE_N, inputs, 120)
+    for name in forces.QUANTITIES:
+        assert float(getattr(f32, name)) == pytest.approx(
+            float(getattr(f64, name)), rel=2e-4, abs=2e-4 * float(f64.complementary_torque_steady)
+        ), name
+
+
+NAMES = ("gaf_third_order", "gaf_rms", "lts_mean", "complementary_torque_steady",
+         "complementary_torque_sixth_order", "roller_load_ratio", "friction_power")  # fmt: skip
+
+
+def test_gradients_against_finite_differences():
+    """Forward-mode derivatives (one compiled JVP, a direction per input) against central differences."""
+    layout = Layout.from_degrees(27.0, 480.0, 18.0)
+    inputs = forces.ForceInputs(900.0, GREASE_A, mu_trunnion=0.02, plunge_speed=5.0, lts_speed=1.0)
+    point = (layout, inputs)
+
+    def quantities(lay, inp):
+        r = forces.forces_halfshaft(lay, inp, 120)
+        return {n: getattr(r, n) for n in NAMES}
+
+    derivative = jax.jit(lambda p, t: jax.jvp(lambda q: quantities(*q), (p,), (t,))[1])
+    fields = ("R", "l", "gamma0", "torque", "mu_slp", "lam", "mu_trunnion")
+
+    def direction(field):
+        def pick(path, leaf):
+            hit = getattr(path[-1], "name", None) == field
+            return jnp.asarray(1.0 if hit else 0.0, jnp.float64)
+
+        tangent = jax.tree_util.tree_map_with_path(pick, point)
+        assert sum(float(x) for x in jax.tree_util.tree_leaves(tangent)) == 1.0, field
+        return tangent
+
+    def shifted(field, h):
+        return jax.tree_util.tree_map(lambda x, d: x + h * d, point, direction(field))
+
+    for field in fields:
+        scale = {"R": 27.0, "l": 480.0, "gamma0": 0.3, "torque": 900.0}.get(field, 0.05)
+        h = 1e-5 * scale
+        ad = derivative(point, direction(field))
+        plus, minus = quantities(*shifted(field, h)), quantities(*shifted(field, -h))
+        for name in NAMES:
+            fd = (float(plus[name]) - float(minus[name])) / (2 * h)
+            size = abs(float(plus[name])) / scale
+            assert float(ad[name]) == pytest.approx(fd, rel=1e-5, abs=1e-7 * size), (field, name)
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"torque": -1.0}, "torque = -1.0 is outside the allowed range"),
+        ({"mu_trunnion": math.nan}, "mu_trunnion = nan"),
+        ({"contact_angle": 2.0}, "contact_angle = 2.0"),
+        ({"speed": 0.0}, "speed = 0.0 is not allowed"),
+        ({"width": 0.0}, "width = 0.0"),
+        ({"params": 0.06}, "params = 0.06"),
+        ({"plunge_speed": math.inf}, "plunge_speed = inf"),
+    ],
+)
+def test_inputs_are_checked_naming_the_field(changes, message):
+    fields = {"torque": 100.0, **changes}
+    with pytest.raises((ValueError, TypeError), match=message.replace("(", r"\(")):
+        forces.ForceInputs(**fields)
+
+
+def test_nan_inputs_inside_jit_give_nan_and_a_code():
+    def run(torque):
+        return forces.forces_halfshaft(CASE_N, forces.ForceInputs(torque), 120)
+
+    result = jax.jit(run)(math.nan)
+    assert math.isnan(float(result.gaf_rms)) and math.isnan(float(result.lts_mean))
+    assert int(result.result) == int(forces.RESULTS.nonfinite)
+    assert int(jax.jit(run)(100.0).result) == int(forces.RESULTS.successful)
+
+
+def test_one_formula_from_gaf_to_lts():
+    """The imposed plunge moves the model from the running case (v_p → 0: GAF) to the LTS test
+    (v_p ≫ R θ̇: every roller strokes with the plunge, as with the joint held still)."""
+    inputs = forces.ForceInputs(1000.0, GREASE_A, speed=10.0, lts_speed=10.0, plunge_speed=1e-9)
+    running = forces.roller_forces(CASE_N, THETA, inputs)
+    creeping = forces.roller_forces(CASE_N, THETA, inputs, case="lts")
+    np.testing.assert_allclose(creeping.axial, running.axial, rtol=1e-8)
+    fast = forces.roller_forces(CASE_N, THETA, inputs.replace(plunge_speed=1e7), case="lts")
+    still = forces.roller_forces(CASE_N, THETA, inputs.replace(lts_speed=0.0), case="lts")
+    np.testing.assert_allclose(fast.axial, still.axial, rtol=1e-4)
+    assert np.all(np.asarray(still.axial) < 0)  # pushed in (+Z), the pot resists (−Z)
+    assert np.ptp(np.sign(np.asarray(running.axial))) > 0  # running: the rollers' own strokes
+
+
+def test_layout_fields_broadcast_against_the_angles():
+    inputs = forces.ForceInputs(1000.0, GREASE_A, mu_trunnion=0.02)
+    R = np.array([25.0, 30.0, 25.0, 28.0])
+    together = forces.roller_forces(Layout(R, 500.0, CASE_N.gamma0), THETA, inputs)
+    assert together.force.shape == (4, 3, 3)
+    for i in range(4):
+        alone = forces.roller_forces(Layout(R[i], 500.0, CASE_N.gamma0), THETA[i], inputs)
+        np.testing.assert_allclose(together.normal[i], alone.normal, rtol=1e-13)
+        np.testing.assert_allclose(together.moment[i], alone.moment, rtol=1e-13, atol=1e-12)

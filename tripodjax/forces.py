@@ -1,0 +1,547 @@
+"""Forces inside the joint: the rollers' contact forces from quasi-static equilibrium (seed §3.1).
+
+The seed names three disturbances of an articulated tripod (§3.1): the generated
+axial force (GAF), the load-to-stroke resistance (LTS) and the complementary
+torque. This module computes all three from one quasi-static model on the exact
+kinematics that [`tripodjax.halfshaft`][tripodjax.halfshaft] solves, instead of
+from the empirical friction of [`tripodjax.friction`][tripodjax.friction].
+
+Geometry, in the fixed frame XYZ (the pot turns by θ about Z; seed §2.3–2.6):
+track k lies at θ_k = θ + k·2π/3 with radial and tangential unit vectors e_r,k,
+e_t,k; the roller centre is C_k = (R e_r,k, Z_k) with Z_k of 2.6.2 (spider
+plunge c included); the trunnion axis is â_k = −(cos ψ_k X' + sin ψ_k Y') with
+X', Y' the columns of the direction cosines 2.3.5 at τ = θ − ψ (2.4.21); the
+roller centre moves relative to the pot along Z only, at Ż_k = θ̇ dZ_k/dθ, and
+relative to its trunnion at d|r_k|/dt (2.6.4).
+
+Assumptions: rigid parts, inertia neglected (seed §3.1); each roller touches
+one flank, normal n_k = cos α e_t,k + sin α e_r,k (contact angle α); it spins
+freely on its trunnion, so it rolls along t_k = â_k × n_k / |â_k × n_k| and
+slides only along b_k = n_k × t_k; the contact point is taken at the roller
+centre (the roller radius times the spider's angular velocity relative to the
+pot adds a slip of second order in γ, neglected). With the roller's velocity
+relative to the pot v_k = (Ż_k + v_p) e_Z (v_p an imposed plunge speed), the
+force of the pot on roller k is
+
+    P_k = N_k [n_k − μ σ(v_k·b_k) b_k − λ σ(v_k·t_k) t_k] + Q_k e_r,k,
+
+σ a smooth sign (tanh of the velocity over ``width`` times the reference speed
+R|θ̇| + |v_p|, as the stroke model of [`tripodjax.friction`][tripodjax.friction];
+the slip's as that of the stroke times tanh(sin β_k / width), β_k the slip angle,
+so that the friction saturates beyond a slip-to-roll ratio of about ``width``),
+μ the sliding coefficient (``FrictionParams.mu_slp``), λ the rolling resistance
+(``FrictionParams.lam``), Q_k the radial reaction of the conforming track. The
+unknowns (N_k, Q_k) follow from six linear equations per angle: each roller's
+balance along its trunnion, P_k·â_k = μ_t N_k σ(d|r_k|/dt) (μ_t the trunnion
+friction), the torque Σ (C_k × P_k)·e_Z = T, and the spider's balance across
+the pot axis, Σ P_k·e_X = F_x, Σ P_k·e_Y = F_y (zero by default: the shaft
+carries no transverse force). The trunnion equations give Q_k in closed form;
+the other three are a 3×3 solve by Cramer's rule: no iteration, differentiable
+everywhere, elementwise over angles and layouts.
+
+Out of it: GAF = Σ P_k·e_Z (the axial force of the pot on the spider) at
+v_p = 0; the LTS, the axial force that opposes an imposed plunge; the
+complementary torque M = Σ C_k × P_k about the pot axis, its components normal
+to Z (the bending moment the rollers put on the housing, with the opposite
+sign); the friction power. Torque in N·m, lengths in mm, forces in N, moments
+in N·m, speeds in rad/s and mm/s, power in W.
+"""
+
+import functools
+import math
+from collections.abc import Iterable
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.typing import ArrayLike
+
+from tripodjax import joint, solvers
+from tripodjax._checks import (
+    check_choice,
+    check_finite,
+    check_instance,
+    check_non_negative,
+    check_positive,
+    check_range,
+    check_real,
+    checked_pytree_dataclass,
+)
+from tripodjax._pytree import pytree_dataclass
+from tripodjax.friction import DEFAULT_STROKE_WIDTH, GREASE_A, FrictionParams
+from tripodjax.halfshaft import HalfshaftSolution, solve_halfshaft
+from tripodjax.kinematics import _check_n_theta, revolution
+from tripodjax.layout import Layout, check_layout
+from tripodjax.results import RESULTS, code_where, worst
+
+CASES = ("running", "lts")
+RUNNING_QUANTITIES = (
+    "gaf_rms",
+    "gaf_peak",
+    "gaf_third_order",
+    "gaf_sixth_order",
+    "gaf_ninth_order",
+    "complementary_torque_steady",
+    "complementary_torque_third_order",
+    "complementary_torque_sixth_order",
+    "roller_load_ratio",
+    "friction_power",
+)
+LTS_QUANTITIES = ("lts_mean", "lts_ripple")
+QUANTITIES = RUNNING_QUANTITIES + LTS_QUANTITIES
+MAX_CONTACT_ANGLE = 0.5 * math.pi
+
+
+@checked_pytree_dataclass
+class ForceInputs:
+    """The load, friction and motion of the force model, as one object.
+
+    Attributes:
+        torque: torque T transmitted by the pot about its axis [N·m], ≥ 0.
+        params: [`FrictionParams`][tripodjax.friction.FrictionParams]; the force
+            model uses ``mu_slp`` (sliding μ at the track) and ``lam`` (rolling
+            resistance λ) only.
+        mu_trunnion: sliding friction μ_t between roller and trunnion [–], ≥ 0
+            (default 0: needle bearings).
+        contact_angle: contact angle α of the roller on its flank [rad],
+            0 ≤ α < π/2 (0: flat flanks).
+        speed: θ̇ of the running case [rad/s], finite, not 0 (GAF, complementary
+            torque, roller loads, friction power; only the power depends on its
+            size, the forces on its sign).
+        plunge_speed: v_p of the LTS test [mm/s], finite: the spider pushed into
+            the pot (> 0, along +Z) or pulled out (< 0).
+        lts_speed: θ̇ during the LTS test [rad/s], finite (default 0: the joint
+            held still under torque and stroked, the idle case; a speed gives
+            the idle case between LTS and GAF).
+        width: width of the smooth signs, in units of the reference speed
+            R|θ̇| + |v_p| [–], > 0 (default that of the stroke model).
+        transverse_x, transverse_y: force of the pot on the spider across the
+            pot axis, fixed frame [N], finite (default 0).
+
+    A pytree: every field is a leaf (traced, differentiable); each is one number
+    for one layout (``jax.vmap`` over a batch). Concrete fields are checked at
+    construction; the error names the field, the value and the range.
+    """
+
+    torque: ArrayLike
+    params: FrictionParams = GREASE_A
+    mu_trunnion: ArrayLike = 0.0
+    contact_angle: ArrayLike = 0.0
+    speed: ArrayLike = 100.0
+    plunge_speed: ArrayLike = 10.0
+    lts_speed: ArrayLike = 0.0
+    width: ArrayLike = DEFAULT_STROKE_WIDTH
+    transverse_x: ArrayLike = 0.0
+    transverse_y: ArrayLike = 0.0
+
+    def __post_init__(self) -> None:
+        check_non_negative("torque", self.torque, " N·m")
+        check_instance("params", self.params, FrictionParams, "a FrictionParams, e.g. GREASE_A")
+        check_non_negative("mu_trunnion", self.mu_trunnion)
+        check_range("contact_angle", self.contact_angle, 0.0, MAX_CONTACT_ANGLE, high_open=True)
+        check_real("speed", self.speed)
+        check_finite("speed", self.speed, " rad/s, not 0")
+        if np.any(np.asarray(self.speed) == 0):
+            raise ValueError(
+                f"speed = {self.speed!r} is not allowed; allowed: speed finite rad/s, not 0 "
+                "(the running case needs a direction of rotation)"
+            )
+        check_finite("plunge_speed", self.plunge_speed, " mm/s")
+        check_finite("lts_speed", self.lts_speed, " rad/s")
+        check_positive(width=self.width)
+        check_finite("transverse_x", self.transverse_x, " N")
+        check_finite("transverse_y", self.transverse_y, " N")
+
+    def replace(self, **changes: Any) -> "ForceInputs":
+        """A copy with some fields changed, e.g. ``inputs.replace(mu_trunnion=0.05)``."""
+        fields = {name: getattr(self, name) for name in self.__dataclass_fields__}
+        fields.update(changes)
+        return ForceInputs(**fields)
+
+
+@pytree_dataclass
+class RollerForces:
+    """The force model at each input angle (trailing axis of 3: the rollers).
+
+    Attributes:
+        normal: N_k, the normal force of the pot on each roller [N], (..., 3).
+        radial: Q_k, the radial reaction of the track [N], (..., 3).
+        force: P_k, the whole force of the pot on each roller, fixed frame [N], (..., 3, 3).
+        axial: Σ P_k·e_Z, the axial force of the pot on the spider [N], (...).
+        moment: Σ C_k × P_k about the pot centre, fixed frame [N·m], (..., 3); its
+            X and Y components are the complementary torque, its Z component T.
+        power: power dissipated by friction at the tracks and trunnions [W], (...).
+        slip: each roller's sliding speed at its track, v_k·b_k [mm/s], (..., 3).
+        rolling: each roller's rolling speed, v_k·t_k [mm/s], (..., 3).
+    """
+
+    normal: jax.Array
+    radial: jax.Array
+    force: jax.Array
+    axial: jax.Array
+    moment: jax.Array
+    power: jax.Array
+    slip: jax.Array
+    rolling: jax.Array
+
+
+def _positions(R, l, gamma0, theta, psi, gamma, delta, delta_gamma):
+    """Roller centres C_k (..., 3, 3), trunnion axes â_k (..., 3, 3), track angles θ_k (..., 3)
+    and the roller–spider distances |r_k| (..., 3), from the solved angles (fixed frame)."""
+    theta_k = joint.roller_angles(theta)
+    cos_g, sin_g, cos_t, sin_t = jnp.cos(gamma), jnp.sin(gamma), jnp.cos(delta), jnp.sin(delta)
+    zero = jnp.zeros_like(gamma)
+    x_axis = jnp.stack([-cos_g * cos_t, -cos_g * sin_t, sin_g], axis=-1)  # X' (2.3.5), τ = Δ
+    y_axis = jnp.stack([sin_t, -cos_t, zero], axis=-1)  # Y'
+    psi_k = joint.roller_angles(psi)
+    trunnion = -(
+        jnp.cos(psi_k)[..., None] * x_axis[..., None, :]
+        + jnp.sin(psi_k)[..., None] * y_axis[..., None, :]
+    )
+    _, _, z = joint.roller_centres(R, gamma, psi)  # Z_k − c (2.6.2)
+    half = 0.5 * delta_gamma
+    plunge = 2.0 * l * jnp.sin(gamma0 + half) * jnp.sin(half)  # c = l (cos γ0 − cos γ)
+    axial = plunge[..., None] + z
+    centres = jnp.stack([R * jnp.cos(theta_k), R * jnp.sin(theta_k), axial], axis=-1)
+    distance = joint.roller_radial_distance(R, gamma, psi)
+    return centres, trunnion, theta_k, distance
+
+
+def _smooth_sign(x, width):
+    return jnp.tanh(x / width)
+
+
+def _unit(v):
+    return v / jnp.sqrt(jnp.sum(v * v, axis=-1, keepdims=True))
+
+
+def _kinematics(R, l, gamma0, sol, rates):
+    """``_positions`` at every angle of ``sol`` and the θ-rates dZ_k/dθ, d|r_k|/dθ (from ``rates``)."""
+    args = (sol.theta, sol.psi, sol.gamma, sol.delta, sol.delta_gamma)
+    tangents = (jnp.ones_like(sol.theta), rates.psi, rates.gamma, rates.delta, rates.delta_gamma)
+    geometry = functools.partial(_positions, R, l, gamma0)
+    (centres, trunnion, theta_k, distance), (d_centres, _, _, d_distance) = jax.jvp(
+        geometry, args, tangents
+    )
+    return centres, trunnion, theta_k, d_centres[..., 2], d_distance
+
+
+def _solve(R, kinematics, inputs, speed, plunge):
+    """The force model at every angle of ``kinematics`` (``_kinematics``) for θ̇ = speed, v_p = plunge."""
+    centres, trunnion, theta_k, stroke_rate, distance_rate = kinematics
+    dtype = centres.dtype
+    speed, plunge = jnp.asarray(speed, dtype), jnp.asarray(plunge, dtype)
+    mu, lam = inputs.params.mu_slp, inputs.params.lam
+    alpha, width = inputs.contact_angle, inputs.width
+    reference = R * jnp.abs(speed) + jnp.abs(plunge)
+    inverse = jnp.where(reference > 0, 1.0 / jnp.where(reference > 0, reference, 1.0), 0.0)
+    inverse = inverse[..., None]
+    axial_speed = stroke_rate * speed[..., None] + plunge[..., None]  # Ż_k + v_p [mm/s]
+    trunnion_speed = distance_rate * speed[..., None]  # d|r_k|/dt [mm/s]
+    zero = jnp.zeros_like(theta_k)
+    e_r = jnp.stack([jnp.cos(theta_k), jnp.sin(theta_k), zero], axis=-1)
+    e_t = jnp.stack([-jnp.sin(theta_k), jnp.cos(theta_k), zero], axis=-1)
+    normal_dir = jnp.cos(alpha)[..., None, None] * e_t + jnp.sin(alpha)[..., None, None] * e_r
+    rolling_dir = _unit(jnp.cross(trunnion, normal_dir))
+    slip_dir = jnp.cross(normal_dir, rolling_dir)
+    rolling = axial_speed * rolling_dir[..., 2]  # v_k·t_k
+    slip = axial_speed * slip_dir[..., 2]  # v_k·b_k
+    sign_roll = _smooth_sign(rolling * inverse, width)
+    # e_Z lies in the tangent plane (e_Z ⊥ n_k): v_k = (Ż_k + v_p)(cos β t_k + sin β b_k), β the
+    # slip angle. The slip's sign is the stroke's times sin β's, each smoothed over the width: the
+    # friction saturates beyond a slip-to-roll ratio of about the width, at any stroke speed.
+    sign_slip = _smooth_sign(axial_speed * inverse, width) * _smooth_sign(slip_dir[..., 2], width)
+    sign_trunnion = _smooth_sign(trunnion_speed * inverse, width)
+    per_normal = (
+        normal_dir
+        - (mu * sign_slip)[..., None] * slip_dir
+        - (lam * sign_roll)[..., None] * rolling_dir
+    )
+    # Roller balance along its trunnion: P_k·â_k = μ_t N_k σ(ṙ_k) gives Q_k = −κ_k N_k.
+    along = jnp.sum(per_normal * trunnion, axis=-1) - inputs.mu_trunnion * sign_trunnion
+    kappa = along / jnp.sum(e_r * trunnion, axis=-1)
+    g = per_normal - kappa[..., None] * e_r  # P_k = N_k g_k
+    # Torque about Z (N·mm) and the spider's balance across Z: three equations in N_k.
+    torque_row = R * jnp.sum(g * e_t, axis=-1)
+    columns = jnp.stack([torque_row, g[..., 0], g[..., 1]], axis=-2)  # (..., equation, roller)
+    shape = torque_row.shape[:-1]
+    rhs = jnp.stack(
+        [
+            jnp.broadcast_to(jnp.asarray(value, dtype), shape)
+            for value in (1000.0 * inputs.torque, inputs.transverse_x, inputs.transverse_y)
+        ],
+        axis=-1,
+    )
+    normal = _cramer(columns, rhs)
+    force = normal[..., None] * g
+    moment = jnp.sum(jnp.cross(centres, force), axis=-2) / 1000.0
+    power = jnp.sum(
+        normal
+        * (
+            mu * sign_slip * slip
+            + lam * sign_roll * rolling
+            + inputs.mu_trunnion * sign_trunnion * trunnion_speed
+        ),
+        axis=-1,
+    )
+    return RollerForces(
+        normal=normal,
+        radial=-kappa * normal,
+        force=force,
+        axial=jnp.sum(force[..., 2], axis=-1),
+        moment=moment,
+        power=power / 1000.0,
+        slip=slip,
+        rolling=rolling,
+    )
+
+
+def _cramer(a, b):
+    """x of a x = b for 3×3 ``a`` (..., 3, 3) by Cramer's rule (cross products), elementwise."""
+    c0, c1, c2 = a[..., 0], a[..., 1], a[..., 2]  # columns
+    cross12, cross20, cross01 = jnp.cross(c1, c2), jnp.cross(c2, c0), jnp.cross(c0, c1)
+    det = jnp.sum(c0 * cross12, axis=-1)
+    return (
+        jnp.stack([jnp.sum(b * c, axis=-1) for c in (cross12, cross20, cross01)], -1)
+        / det[..., None]
+    )
+
+
+def _case_motion(inputs, case):
+    if case == "running":
+        return inputs.speed, 0.0
+    return inputs.lts_speed, inputs.plunge_speed
+
+
+def _check_inputs(inputs):
+    check_instance("inputs", inputs, ForceInputs, "a ForceInputs, e.g. ForceInputs(torque=500.0)")
+
+
+def roller_forces(
+    layout: Layout,
+    theta: ArrayLike,
+    inputs: ForceInputs,
+    solver: solvers.SolverLike = "newton",
+    *,
+    case: str = "running",
+) -> RollerForces:
+    """The force model at input angles ``theta`` [rad] of a halfshaft (see the module).
+
+    Args:
+        layout: a [`Layout`][tripodjax.layout.Layout] (scalar fields, or fields that
+            broadcast against ``theta``).
+        theta: input angles θ [rad], any shape.
+        inputs: [`ForceInputs`][tripodjax.forces.ForceInputs].
+        solver: the kinematics' level (see [`tripodjax.solvers`][tripodjax.solvers]).
+        case: ``"running"`` — θ̇ = ``inputs.speed``, no plunge (GAF); ``"lts"`` —
+            θ̇ = ``inputs.lts_speed``, v_p = ``inputs.plunge_speed``.
+
+    The kinematics and their θ-rates come from
+    [`solve_halfshaft`][tripodjax.halfshaft.solve_halfshaft] (forward mode through the
+    solve, implicit for Newton). Differentiable w.r.t. the layout and every input.
+    """
+    check_layout(layout)
+    check_real("theta", theta)
+    _check_inputs(inputs)
+    check_choice("case", case, CASES)
+    return _roller_forces(layout, theta, inputs, solver=solvers.resolve(solver), case=case)
+
+
+@functools.partial(jax.jit, static_argnames=("solver", "case"))
+def _roller_forces(layout, theta, inputs, *, solver, case):
+    dtype = jnp.result_type(layout.R, layout.l, layout.gamma0, theta, 0.0)
+    fields = [jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0, theta)]
+    shape = jnp.broadcast_shapes(*(a.shape for a in fields))
+    flat = [jnp.broadcast_to(a, shape).reshape(-1) for a in fields]
+
+    def at(R, l, gamma0, t):  # one layout at one angle: the layout's fields may vary with θ
+        sol, rates = jax.jvp(
+            lambda u: solve_halfshaft(Layout(R, l, gamma0), u, solver), (t,), (jnp.ones_like(t),)
+        )
+        kinematics = _kinematics(R, l, gamma0, sol, rates)
+        return _solve(R, kinematics, inputs, *_case_motion(inputs, case))
+
+    out = jax.vmap(at)(*flat)
+    return jax.tree_util.tree_map(lambda x: x.reshape(shape + x.shape[1:]), out)
+
+
+def _safe_sqrt(x):
+    """√x with a zero (not NaN) derivative where x = 0; NaN stays NaN."""
+    positive = x > 0
+    return jnp.where(positive, jnp.sqrt(jnp.where(positive, x, 1.0)), x)
+
+
+def _harmonic(signal, order):
+    """(cosine, sine) amplitudes of the harmonic of ``order`` cycles over the samples (last axis)."""
+    n = signal.shape[-1]
+    phase = 2.0 * np.pi * order * np.arange(n) / n
+    cos, sin = (jnp.asarray(f(phase), signal.dtype) for f in (np.cos, np.sin))
+    return 2.0 / n * jnp.sum(signal * cos, -1), 2.0 / n * jnp.sum(signal * sin, -1)
+
+
+def _amplitude(*signals, order):
+    """Amplitude of a harmonic of one signal, or of a vector of signals (the norm of theirs)."""
+    return _safe_sqrt(sum(c * c + s * s for x in signals for c, s in [_harmonic(x, order)]))
+
+
+def _running_quantity(name, f, torque, R):
+    """A running-case quantity over one period (every quantity has period 2π/3 in θ)."""
+    gaf, mx, my = f.axial, f.moment[..., 0], f.moment[..., 1]
+    if name == "gaf_rms":
+        return _safe_sqrt(jnp.mean(gaf * gaf, -1))
+    if name == "gaf_peak":
+        return jnp.max(jnp.abs(gaf), -1)
+    orders = {"third": 1, "sixth": 2, "ninth": 3}  # harmonics of the period: orders 3, 6, 9
+    if name.startswith("gaf_"):
+        return _amplitude(gaf, order=orders[name.split("_")[1]])
+    if name == "complementary_torque_steady":
+        return _safe_sqrt(jnp.mean(mx, -1) ** 2 + jnp.mean(my, -1) ** 2)
+    if name.startswith("complementary_torque_"):
+        return _amplitude(mx, my, order=orders[name.split("_")[2]])
+    if name == "roller_load_ratio":
+        nominal = 1000.0 * torque / (3.0 * R)
+        return jnp.max(f.normal, axis=(-2, -1)) / nominal
+    return jnp.mean(f.power, -1)  # friction_power
+
+
+def force_quantities(
+    layout: Layout,
+    sol: HalfshaftSolution,
+    rates: HalfshaftSolution,
+    inputs: ForceInputs,
+    names: Iterable[str] = QUANTITIES,
+) -> dict[str, jax.Array]:
+    """The named force quantities over a revolution, from a [`revolution`][tripodjax.kinematics.revolution].
+
+    ``sol, rates`` from ``revolution(layout, n_theta, solver, with_rates=True)``
+    (one period; every force quantity has period 2π/3 in θ, the rollers taking
+    each other's places). Only the cases the names need are solved (the running
+    case for the GAF, complementary torque, roller loads and power; the LTS case
+    for ``lts_*``). Names, see [`ForceResult`][tripodjax.forces.ForceResult]:
+    ``gaf_rms``, ``gaf_peak``, ``gaf_third_order``, ``gaf_sixth_order``,
+    ``gaf_ninth_order`` [N]; ``lts_mean``, ``lts_ripple`` [N];
+    ``complementary_torque_steady``, ``complementary_torque_third_order``,
+    ``complementary_torque_sixth_order`` [N·m]; ``roller_load_ratio`` [–];
+    ``friction_power`` [W]; ``result`` (the worst RESULTS code). Elementwise:
+    ``jax.vmap`` it over layouts. Nothing is checked (it runs inside jit).
+    """
+    names = tuple(names)
+    return _evaluate(layout, sol, rates, inputs, names)[0]
+
+
+def _evaluate(layout, sol, rates, inputs, names):
+    dtype = sol.theta.dtype
+    R, l, gamma0 = (jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0))
+    torque = jnp.asarray(inputs.torque, dtype)
+    out, cases = {}, {}
+    kinematics = _kinematics(R, l, gamma0, sol, rates)
+    wanted = [
+        case
+        for case, group in (("running", RUNNING_QUANTITIES), ("lts", LTS_QUANTITIES))
+        if set(names) & set(group)
+    ]
+    if wanted:  # every case in one pass: a leading axis of the motions (one trace, one program)
+        motions = [_case_motion(inputs, case) for case in wanted]
+        speed, plunge = (
+            jnp.stack([jnp.asarray(m[i], dtype) for m in motions]).reshape(-1, 1) for i in (0, 1)
+        )
+        solved = _solve(R, kinematics, inputs, speed, plunge)
+        for i, case in enumerate(wanted):
+            cases[case] = jax.tree_util.tree_map(lambda x, i=i: x[i], solved)
+    for name in names:
+        if name in RUNNING_QUANTITIES:
+            out[name] = _running_quantity(name, cases["running"], torque, R)
+    if "lts" in cases:
+        resistance = -jnp.sign(jnp.asarray(inputs.plunge_speed, dtype)) * cases["lts"].axial
+        if "lts_mean" in names:
+            out["lts_mean"] = jnp.mean(resistance, -1)
+        if "lts_ripple" in names:
+            out["lts_ripple"] = 0.5 * (jnp.max(resistance, -1) - jnp.min(resistance, -1))
+    if "result" in names:
+        finite = jnp.all(jnp.stack([jnp.all(jnp.isfinite(v)) for v in out.values()]))
+        out["result"] = worst(
+            jnp.max(sol.result), code_where(~finite, RESULTS.nonfinite, RESULTS.successful)
+        )
+    return out, cases
+
+
+@pytree_dataclass
+class ForceResult:
+    """The force model over one revolution of a halfshaft (one period, 2π/3, of the input).
+
+    Attributes:
+        theta: input angles of the period [rad], (n,).
+        running: [`RollerForces`][tripodjax.forces.RollerForces] of the running case at each angle.
+        lts: [`RollerForces`][tripodjax.forces.RollerForces] of the LTS case at each angle.
+        gaf_rms, gaf_peak: RMS and largest |GAF| of the running case [N].
+        gaf_third_order, gaf_sixth_order, gaf_ninth_order: GAF amplitudes of the
+            orders 3, 6, 9 of the rotation [N] (only multiples of 3 exist: the
+            period is 2π/3).
+        lts_mean: mean axial force opposing the imposed plunge [N].
+        lts_ripple: half its peak-to-peak over a revolution (the ± about the mean) [N].
+        complementary_torque_steady: magnitude of the mean of the moment's X, Y
+            components [N·m].
+        complementary_torque_third_order, complementary_torque_sixth_order:
+            amplitudes of their orders 3 and 6 (the norm over X and Y) [N·m].
+        roller_load_ratio: the largest N_k over the revolution over T/(3R) [–].
+        friction_power: mean power dissipated by friction [W], running case.
+        result: worst [`RESULTS`][tripodjax.results.RESULTS] code of the kinematics
+            over the revolution, or ``nonfinite`` where a quantity is not finite.
+    """
+
+    theta: jax.Array
+    running: RollerForces
+    lts: RollerForces
+    gaf_rms: jax.Array
+    gaf_peak: jax.Array
+    gaf_third_order: jax.Array
+    gaf_sixth_order: jax.Array
+    gaf_ninth_order: jax.Array
+    lts_mean: jax.Array
+    lts_ripple: jax.Array
+    complementary_torque_steady: jax.Array
+    complementary_torque_third_order: jax.Array
+    complementary_torque_sixth_order: jax.Array
+    roller_load_ratio: jax.Array
+    friction_power: jax.Array
+    result: jax.Array
+
+
+def forces_from_revolution(
+    layout: Layout, sol: HalfshaftSolution, rates: HalfshaftSolution, inputs: ForceInputs
+) -> ForceResult:
+    """Every force quantity and both cases' per-angle forces, from a revolution (nothing checked)."""
+    out, cases = _evaluate(layout, sol, rates, inputs, QUANTITIES + ("result",))
+    return ForceResult(theta=sol.theta, running=cases["running"], lts=cases["lts"], **out)
+
+
+def forces_halfshaft(
+    layout: Layout,
+    inputs: ForceInputs,
+    n_theta: int = 360,
+    solver: solvers.SolverLike = "newton",
+) -> ForceResult:
+    """The force model of a halfshaft over a revolution (n_theta angles a turn, one period solved).
+
+    Args:
+        layout: a [`Layout`][tripodjax.layout.Layout] with scalar fields (``jax.vmap``
+            over layouts for batches).
+        inputs: [`ForceInputs`][tripodjax.forces.ForceInputs].
+        n_theta: angles per revolution, a multiple of 6.
+        solver: any level of [`tripodjax.solvers`][tripodjax.solvers]; the kinematics
+            over the revolution come from [`revolution`][tripodjax.kinematics.revolution].
+
+    Returns a [`ForceResult`][tripodjax.forces.ForceResult]; differentiable w.r.t. the
+    layout and every field of ``inputs``.
+    """
+    check_layout(layout)
+    _check_inputs(inputs)
+    _check_n_theta(n_theta)
+    return _forces_halfshaft(layout, inputs, n_theta=n_theta, solver=solvers.resolve(solver))
+
+
+@functools.partial(jax.jit, static_argnames=("n_theta", "solver"))
+def _forces_halfshaft(layout, inputs, *, n_theta, solver):
+    sol, rates = revolution(layout, n_theta, solver, with_rates=True)
+    return forces_from_revolution(layout, sol, rates, inputs)
