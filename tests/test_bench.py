@@ -100,8 +100,9 @@ def test_latency_table_of_one_entry(tmp_path):
     (name,) = figures["entries"]
     entry = figures["entries"][name]
     parts = ("import_s", "trace_s", "lower_s", "compile_s", "run_s")
-    assert abs(sum(entry[p] for p in parts) - entry["wall_s"]) < 1e-6
-    assert all(entry[p] >= 0 for p in parts[:-1]) and entry["compile_s"] > 0
+    # The parts cover the wall time (they overlap only where threads compile at once).
+    assert sum(entry[p] for p in parts) >= entry["wall_s"] - 1e-6
+    assert all(entry[p] >= 0 for p in parts) and entry["compile_s"] > 0
     assert abs(entry["over_floor"] - entry["wall_s"] / figures["floors"]["library_s"]) < 1e-9
     program = max(entry["programs"], key=lambda p: p["compile_s"])
     assert "_evaluate_chunk" in program["name"] and program["kb"] > 0 and program["ops"] > 0

@@ -26,6 +26,7 @@ import argparse
 import json
 import os
 import platform
+import re
 import subprocess
 import sys
 import time
@@ -657,20 +658,26 @@ def _fresh_process(code: str, env: dict[str, str]) -> tuple[float, dict[str, Any
 def _programs_of(record: dict[str, Any], ir_dir: str) -> list[dict[str, Any]]:
     """Each compiled program: its name, compile seconds and StableHLO size (the dump's kB and ops).
 
-    JAX dumps one ``jax_ir<N>_<name>_compile.mlir`` per compiled program, in compile order.
+    JAX dumps one ``jax_ir<N>_<name>_compile.mlir`` per compiled program; each compile span
+    takes the first dump not yet taken whose name is its program's (``jit(f)`` → ``jit_f``):
+    programs compiled in threads (the command's) may finish out of order.
     """
     dumps = sorted(f for f in os.listdir(ir_dir) if f.endswith("_compile.mlir"))
-    compiles = [
+    compiles = sorted(
         (s, e, name) for event, s, e, name in record["spans"] if event.startswith("backend_compile")
-    ]
+    )
     programs = []
-    for (s, e, name), dump in zip(compiles, dumps, strict=False):
-        with open(os.path.join(ir_dir, dump), encoding="utf-8") as f:
-            text = f.read()
-        ops = sum(
-            1 for line in text.splitlines() if " = " in line and not line.lstrip().startswith("#")
-        )
-        programs.append({"name": name, "compile_s": e - s, "kb": len(text) / 1e3, "ops": ops})
+    for s, e, name in compiles:
+        stem = re.sub(r"\W", "_", name.replace(")", ""))
+        dump = next((d for d in dumps if d.split("_", 2)[2] == f"{stem}_compile.mlir"), None)
+        size = {"kb": 0.0, "ops": 0}
+        if dump is not None:
+            dumps.remove(dump)
+            with open(os.path.join(ir_dir, dump), encoding="utf-8") as f:
+                text = f.read()
+            ops = sum(1 for line in text.splitlines() if " = " in line)
+            size = {"kb": len(text) / 1e3, "ops": ops}
+        programs.append({"name": name, "compile_s": e - s, **size})
     return programs
 
 
@@ -689,7 +696,10 @@ def _breakdown(wall: float, record: dict[str, Any]) -> dict[str, float]:
         "lower_s": covered("jaxpr_to_mlir"),
         "compile_s": covered("backend_compile"),
     }
-    parts["run_s"] = wall - sum(parts.values())
+    # The rest: running and Python. Threads (the command's) may trace, lower and compile at
+    # once: the parts then overlap, and the rest is what no span covers.
+    busy = _union([(s, e) for _, s, e, _ in spans])
+    parts["run_s"] = max(wall - parts["import_s"] - busy, 0.0)
     return parts
 
 
