@@ -595,7 +595,7 @@ LATENCY_ENTRIES: tuple[tuple[str, str, str], ...] = (
     ),
 )
 LIBRARY_FLOOR = "import jax, tripodjax"
-COMMAND_FLOOR = "import jax, matplotlib.pyplot"  # optimize.bench's floor of the command
+COMMAND_FLOOR = "import jax, matplotlib.pyplot"  # the command's floor (optimize.bench too)
 
 # The child: records JAX's trace, lowering and compile spans (jax.monitoring: the program's
 # name with each) and the time its imports took, runs the entry and prints them as JSON.
