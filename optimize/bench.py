@@ -21,6 +21,10 @@ Every figure is measured in the same run against a peer, and reported as a ratio
 - Monte Carlo samples per second of the reliability's requirement chain, against the plain
   sweep's layouts per second (``monte_carlo_rate``).
 
+The per-program breakdown of the first answers (trace, compile and run of each program, the
+first solve of each structure and the command cold and warm) is ``python -m tripodjax.bench
+--latency`` (``tripodjax.bench.latency``), which shares this module's structures and floor.
+
 Needs SciPy (the ``bench`` extra: ``pip install "tripodjax[bench]"``).
 """
 
@@ -31,6 +35,8 @@ import subprocess
 import sys
 import tempfile
 import time
+
+from tripodjax.bench import COMMAND_FLOOR
 
 FIDELITY_SETTINGS = (
     ("newton", 360),
@@ -80,7 +86,7 @@ def command_latency(repeats=2, spec_text=None):
     ``spec_text``: a TOML spec to run instead of the default (e.g. one of `STRUCTURES`: its
     warm run loads the structure's export from the command's cache).
     """
-    floor = _seconds([sys.executable, "-c", "import jax, matplotlib.pyplot"], repeats=3)
+    floor = _seconds([sys.executable, "-c", COMMAND_FLOOR], repeats=3)
     cli = [sys.executable, "-P", "-m", "tripodjax.optimize.cli"]  # -P: the installed package
     with tempfile.TemporaryDirectory() as tmp:
         env = dict(os.environ, TRIPODJAX_CACHE_DIR=os.path.join(tmp, "cache"))
@@ -317,7 +323,7 @@ def long_spectrum(cases=1000, command=True):
         "sensitivities_over_solve": sensitivities_s / solve_s,
     }
     if command:
-        floor = _seconds([sys.executable, "-c", "import jax, matplotlib.pyplot"], repeats=3)
+        floor = _seconds([sys.executable, "-c", COMMAND_FLOOR], repeats=3)
         with tempfile.TemporaryDirectory() as tmp:
             path = os.path.join(tmp, "long.toml")
             with open(path, "w", encoding="utf-8") as f:

@@ -71,3 +71,43 @@ def test_bench_writes_its_figures(tmp_path):
         and "gradient (R, l, γ0) / forward cost" in result.stdout
         and "newton/float64 reaches" in result.stdout
     )
+
+
+def test_latency_table_of_one_entry(tmp_path):
+    """``--latency`` on its cheapest entry: the wall time of a fresh process is split into
+    import, trace, lowering, compile and run, each program named with its compile time and
+    size, and set against the floor measured in the same run."""
+    out = tmp_path / "latency.json"
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "tripodjax.bench",
+            "--latency",
+            "--repeats",
+            "1",
+            "--entries",
+            "sweep",
+            "--gradient-layouts",
+            "",
+            "--json",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert result.returncode == 0, result.stderr
+    figures = json.loads(out.read_text())
+    assert figures["cpu"] and figures["floors"]["library_s"] > 0
+    (name,) = figures["entries"]
+    entry = figures["entries"][name]
+    parts = ("import_s", "trace_s", "lower_s", "compile_s", "run_s")
+    # The parts cover the wall time (they overlap only where threads compile at once).
+    assert sum(entry[p] for p in parts) >= entry["wall_s"] - 1e-6
+    assert all(entry[p] >= 0 for p in parts) and entry["compile_s"] > 0
+    assert abs(entry["over_floor"] - entry["wall_s"] / figures["floors"]["library_s"]) < 1e-9
+    program = max(entry["programs"], key=lambda p: p["compile_s"])
+    assert "_evaluate_chunk" in program["name"] and program["kb"] > 0 and program["ops"] > 0
+    assert sum(p["compile_s"] for p in entry["programs"]) <= entry["compile_s"] + 1e-6
+    assert "compile latency" in result.stdout and figures["cpu"] in result.stdout

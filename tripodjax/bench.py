@@ -27,6 +27,7 @@ import datetime
 import json
 import os
 import platform
+import re
 import subprocess
 import sys
 import time
@@ -283,7 +284,6 @@ def run(
     domain_n: int = 2000,
 ) -> dict[str, Any]:
     import jax
-    import jax.numpy as jnp
 
     import tripodjax as tj
 
@@ -391,20 +391,34 @@ def run(
         np.max(np.abs(fs["irregularity"] - reference["irregularity"][sub]))
     )
 
-    # Gradient of the batch's summed irregularity w.r.t. every layout field, against the forward pass.
-    batch = layouts(np.float64, R[:gradient_layouts], l[:gradient_layouts], g0[:gradient_layouts])
-    irregularity = lambda lay: tj.kinematic_metrics(lay, n_theta=n_theta).irregularity  # noqa: E731
-    forward = jax.jit(lambda b: jnp.sum(jax.vmap(irregularity)(b)))
-    gradient = jax.jit(jax.grad(lambda b: jnp.sum(jax.vmap(irregularity)(b))))
+    results["gradient_to_forward"] = gradient_to_forward(
+        layouts(np.float64, R[:gradient_layouts], l[:gradient_layouts], g0[:gradient_layouts]),
+        n_theta,
+        repeats,
+    )
+    return results
+
+
+def gradient_to_forward(batch: Any, n_theta: int = 360, repeats: int = 3) -> dict[str, Any]:
+    """Seconds of the gradient of a batch's summed irregularity w.r.t. every layout field
+    (R, l, γ0; newton) against its forward pass, both compiled (best of ``repeats``)."""
+    import jax
+    import jax.numpy as jnp
+
+    import tripodjax as tj
+
+    def total(b):
+        return jnp.sum(jax.vmap(lambda lay: tj.kinematic_metrics(lay, n_theta).irregularity)(b))
+
+    forward, gradient = jax.jit(total), jax.jit(jax.grad(total))
     t_forward = _best_time(lambda: jax.block_until_ready(forward(batch)), repeats)
     t_gradient = _best_time(lambda: jax.block_until_ready(gradient(batch)), repeats)
-    results["gradient_to_forward"] = {
-        "layouts": gradient_layouts,
+    return {
+        "layouts": int(np.shape(batch.R)[0]),
         "forward_s": t_forward,
         "gradient_s": t_gradient,
         "ratio": t_gradient / t_forward,
     }
-    return results
 
 
 def output_costs(
@@ -555,7 +569,272 @@ def cost_table(costs: dict[str, Any], n_theta: int) -> list[str]:
     return lines
 
 
+# --------------------------------------------------------------------------- compile latency
+
+# What a user does first, each run in a fresh process with empty caches: (name, what, code).
+# The code runs after ``import jax, tripodjax`` (the library floor) and may use the names of
+# `_LATENCY_PRELUDE`; a command entry is run as ``optimize-joint`` with the arguments given.
+_LATENCY_PRELUDE = "import jax\nimport tripodjax as tj\n"
+_CHANCE_SPEC = (
+    "from tripodjax.optimize.uncertainty import DEFAULT_TOLERANCES_TOML as T\n"
+    "spec = optimize.parse_spec(T + '[constraints]\\nmax_failure_probability_life = 1e-3\\n')\n"
+)
+LATENCY_ENTRIES: tuple[tuple[str, str, str], ...] = (
+    (
+        "readme",
+        "README's first example: kinematic_metrics of case N, then jax.grad of its irregularity",
+        "layout = tj.Layout.from_degrees(R=25.0, l=500.0, gamma0_deg=20.0)\n"
+        "m = tj.kinematic_metrics(layout)\n"
+        "g = jax.grad(lambda lay: tj.kinematic_metrics(lay).irregularity)(layout)\n"
+        "jax.block_until_ready((m, g))\n",
+    ),
+    (
+        "sweep",
+        "sweep of 1000 layouts, analytic",
+        "from tripodjax.bench import random_layouts\n"
+        "tj.sweep(tj.Layout(*random_layouts(1000)), solver='analytic', progress=False)\n",
+    ),
+    (
+        "solve",
+        "optimize.solve(load_spec())",
+        "from tripodjax import optimize\noptimize.solve(optimize.load_spec(), progress=False)\n",
+    ),
+    (
+        "solve_l_gamma0",
+        "optimize.solve, l and γ0 free",
+        "from tripodjax import optimize\nfrom tripodjax.optimize.bench import STRUCTURES\n"
+        "spec = optimize.parse_spec(STRUCTURES['R, d_roller, l, gamma0_deg'])\n"
+        "optimize.solve(spec, progress=False)\n",
+    ),
+    (
+        "solve_conformity",
+        "optimize.solve, conformity free",
+        "from tripodjax import optimize\nfrom tripodjax.optimize.bench import STRUCTURES\n"
+        "spec = optimize.parse_spec(STRUCTURES['R, d_roller, conformity'])\n"
+        "optimize.solve(spec, progress=False)\n",
+    ),
+    (
+        "solve_chance",
+        "optimize.solve, max_failure_probability_life = 1e-3, documented tolerances",
+        "from tripodjax import optimize\n"
+        + _CHANCE_SPEC
+        + "optimize.solve(spec, progress=False)\n",
+    ),
+    ("command_cold", "optimize-joint --out DIR, cold", "command"),
+    (
+        "command_warm",
+        "optimize-joint --out DIR, warm (its cache filled by the cold run)",
+        "command",
+    ),
+)
+LIBRARY_FLOOR = "import jax, tripodjax"
+COMMAND_FLOOR = "import jax, matplotlib.pyplot"  # the command's floor (optimize.bench too)
+
+# The child: records JAX's trace, lowering and compile spans (jax.monitoring: the program's
+# name with each) and the time its imports took, runs the entry and prints them as JSON.
+_CHILD = """\
+import time
+start = time.time()
+import json, sys
+import jax.monitoring
+spans = []
+jax.monitoring.register_event_time_span_listener(
+    lambda event, s, e, **kw: spans.append((event.rsplit('/', 1)[-1], s, e, kw.get('fun_name', '')))
+)
+{prelude}
+imported = time.time()
+{code}
+print('\\nLATENCY ' + json.dumps({{'start': start, 'imported': imported, 'end': time.time(), 'spans': spans}}))
+"""
+_COMMAND_CODE = (
+    "from tripodjax.optimize.cli import command\n"
+    "sys.argv = ['optimize-joint', '--out', {out!r}, '--progress', 'off']\n"
+    "try:\n    command()\nexcept SystemExit as e:\n    assert not e.code, e.code\n"
+)
+
+
+def cpu_model() -> str:
+    """The CPU's model name (/proc/cpuinfo), or the platform's processor string."""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def _union(intervals: list[tuple[float, float]]) -> float:
+    """Seconds covered by the union of (start, end) intervals (nested spans counted once)."""
+    total, reach = 0.0, -np.inf
+    for s, e in sorted(intervals):
+        if e > reach:
+            total += e - max(s, reach)
+            reach = e
+    return total
+
+
+def _fresh_process(code: str, env: dict[str, str]) -> tuple[float, dict[str, Any] | None]:
+    """Wall seconds of ``python -c code`` and the child's LATENCY record, if it printed one."""
+    start = time.perf_counter()
+    done = subprocess.run(
+        [sys.executable, "-P", "-c", code], capture_output=True, text=True, env=env
+    )
+    wall = time.perf_counter() - start
+    if done.returncode:
+        raise RuntimeError(f"latency entry failed: {done.stderr.strip()[-800:]}")
+    records = [line for line in done.stdout.splitlines() if line.startswith("LATENCY ")]
+    return wall, json.loads(records[-1][8:]) if records else None
+
+
+def _programs_of(record: dict[str, Any], ir_dir: str) -> list[dict[str, Any]]:
+    """Each compiled program: its name, compile seconds and StableHLO size (the dump's kB and ops).
+
+    JAX dumps one ``jax_ir<N>_<name>_compile.mlir`` per compiled program; each compile span
+    takes the first dump not yet taken whose name is its program's (``jit(f)`` → ``jit_f``):
+    programs compiled in threads (the command's) may finish out of order.
+    """
+    dumps = sorted(f for f in os.listdir(ir_dir) if f.endswith("_compile.mlir"))
+    compiles = sorted(
+        (s, e, name) for event, s, e, name in record["spans"] if event.startswith("backend_compile")
+    )
+    programs = []
+    for s, e, name in compiles:
+        stem = re.sub(r"\W", "_", name.replace(")", ""))
+        dump = next((d for d in dumps if d.split("_", 2)[2] == f"{stem}_compile.mlir"), None)
+        size = {"kb": 0.0, "ops": 0}
+        if dump is not None:
+            dumps.remove(dump)
+            with open(os.path.join(ir_dir, dump), encoding="utf-8") as f:
+                text = f.read()
+            ops = sum(1 for line in text.splitlines() if " = " in line)
+            size = {"kb": len(text) / 1e3, "ops": ops}
+        programs.append({"name": name, "compile_s": e - s, **size})
+    return programs
+
+
+def _breakdown(wall: float, record: dict[str, Any]) -> dict[str, float]:
+    """Wall seconds split into import, trace, lowering, compile and the rest (running, Python)."""
+    spans = record["spans"]
+
+    def covered(prefix):
+        return _union([(s, e) for event, s, e, _ in spans if event.startswith(prefix)])
+
+    parts = {
+        "import_s": record["imported"]
+        - record["start"]
+        + (wall - (record["end"] - record["start"])),
+        "trace_s": covered("jaxpr_trace"),
+        "lower_s": covered("jaxpr_to_mlir"),
+        "compile_s": covered("backend_compile"),
+    }
+    # The rest: running and Python. Threads (the command's) may trace, lower and compile at
+    # once: the parts then overlap, and the rest is what no span covers.
+    busy = _union([(s, e) for _, s, e, _ in spans])
+    parts["run_s"] = max(wall - parts["import_s"] - busy, 0.0)
+    return parts
+
+
+def latency(repeats: int = 3, names: Sequence[str] | None = None) -> dict[str, Any]:
+    """Each entry of `LATENCY_ENTRIES` (or those ``names``) in fresh processes with empty caches.
+
+    Per repeat, the floors (``python -c "import jax, tripodjax"``, and for the command
+    ``import jax, matplotlib.pyplot``) run just before the entries (interleaved: the machine
+    may be shared); the figures are medians over the repeats, the programs those of the
+    median run. Returns {"cpu", "floors", "entries": {name: {...}}}.
+    """
+    import tempfile
+
+    selected = [e for e in LATENCY_ENTRIES if names is None or e[0] in names]
+    unknown = set(names or ()) - {e[0] for e in LATENCY_ENTRIES}
+    if unknown:
+        raise ValueError(
+            f"latency entries {sorted(unknown)} are not known; allowed: {[e[0] for e in LATENCY_ENTRIES]}"
+        )
+    floors: dict[str, list[float]] = {"library": [], "command": []}
+    runs: dict[str, list[dict[str, Any]]] = {name: [] for name, _, _ in selected}
+    base = {k: v for k, v in os.environ.items() if not k.startswith("JAX_COMPILATION_CACHE")}
+    for _ in range(repeats):
+        floors["library"].append(_fresh_process(LIBRARY_FLOOR, base)[0])
+        if any(code == "command" for _, _, code in selected):
+            floors["command"].append(_fresh_process(COMMAND_FLOOR, base)[0])
+        with tempfile.TemporaryDirectory() as tmp:
+            out, cache = os.path.join(tmp, "out"), os.path.join(tmp, "cache")
+            for i, (name, _, code) in enumerate(selected):
+                ir_dir = os.path.join(tmp, f"ir{i}")
+                env = dict(base, TRIPODJAX_CACHE_DIR=cache, JAX_DUMP_IR_TO=ir_dir)
+                if code == "command":
+                    prelude, code = "", _COMMAND_CODE.format(out=out)
+                else:
+                    prelude = _LATENCY_PRELUDE
+                wall, record = _fresh_process(_CHILD.format(prelude=prelude, code=code), env)
+                assert record is not None
+                os.makedirs(ir_dir, exist_ok=True)
+                runs[name].append(
+                    {
+                        "wall_s": wall,
+                        **_breakdown(wall, record),
+                        "programs": _programs_of(record, ir_dir),
+                    }
+                )
+    library = float(np.median(floors["library"]))
+    command = float(np.median(floors["command"])) if floors["command"] else library
+    entries = {}
+    for name, what, code in selected:
+        ordered = sorted(runs[name], key=lambda r: r["wall_s"])
+        median = ordered[len(ordered) // 2]
+        figures = {
+            k: float(np.median([r[k] for r in runs[name]])) for k in median if k.endswith("_s")
+        }
+        floor = command if code == "command" else library
+        entries[name] = {
+            "what": what,
+            **figures,
+            "over_floor": figures["wall_s"] / floor,
+            "over_library_floor": figures["wall_s"] / library,
+            "programs": median["programs"],
+        }
+    return {
+        "cpu": cpu_model(),
+        "cpu_count": os.cpu_count(),
+        "repeats": repeats,
+        # The command floor is the library's when no command entry ran.
+        "floors": {"library_s": library, "command_s": command},
+        "entries": entries,
+    }
+
+
+def latency_report(results: dict[str, Any], programs: int = 4) -> str:
+    """The latency table: per entry, wall seconds and its ratio to the floor, split into import,
+    trace, lowering, compile and run, and its largest programs (compile s, StableHLO kB)."""
+    f = results["floors"]
+    lines = [
+        f"compile latency — {results['cpu']}, {results['cpu_count']} cores; fresh process, empty "
+        f"caches, medians of {results['repeats']}; floor `{LIBRARY_FLOOR}` {f['library_s']:.2f} s"
+        + f", command floor `{COMMAND_FLOOR}` {f['command_s']:.2f} s",
+        f"{'entry':<17} {'wall s':>7} {'× floor':>8} {'import':>7} {'trace':>6} {'lower':>6} "
+        f"{'compile':>8} {'run':>6}  largest programs (compile s, StableHLO kB)",
+    ]
+    for name, e in results["entries"].items():
+        largest = sorted(e["programs"], key=lambda p: -p["compile_s"])[:programs]
+        named = ", ".join(f"{p['name']} {p['compile_s']:.2f} s {p['kb']:.0f} kB" for p in largest)
+        lines.append(
+            f"{name:<17} {e['wall_s']:>7.2f} {e['over_floor']:>8.2f} {e['import_s']:>7.2f} "
+            f"{e['trace_s']:>6.2f} {e['lower_s']:>6.2f} {e['compile_s']:>8.2f} {e['run_s']:>6.2f}  "
+            f"[{len(e['programs'])} programs] {named}"
+        )
+    lines.append(
+        "× floor: the command's entries against the command floor, the others against the library's"
+    )
+    return "\n".join(lines)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    if argv is None:
+        argv = sys.argv[1:]
+    if "--latency" in argv:
+        return latency_main(argv)
     try:
         import scipy.optimize  # noqa: F401  (the fsolve peer)
     except ModuleNotFoundError:
@@ -631,6 +910,56 @@ def main(argv: Sequence[str] | None = None) -> int:
         results["memory"] = memory_of_sweep(args.memory, args.n_theta)
     print(report(results))
     results["measured_on"] = measured_on()
+    with open(args.json, "w") as f:
+        json.dump(results, f, indent=2)
+    print(f"figures written to {args.json}")
+    return 0
+
+
+def latency_main(argv: Sequence[str]) -> int:
+    """``python -m tripodjax.bench --latency``: the compile-latency table (see `latency`)."""
+    parser = argparse.ArgumentParser(
+        prog="python -m tripodjax.bench --latency",
+        description="trace, compile and run time of each first answer, in fresh processes",
+    )
+    parser.add_argument("--latency", action="store_true", required=True)
+    parser.add_argument("--repeats", type=int, default=3, help="fresh runs per entry (median)")
+    parser.add_argument(
+        "--entries",
+        default=None,
+        metavar="NAMES",
+        help="comma-separated entries (default all: "
+        + ",".join(e[0] for e in LATENCY_ENTRIES)
+        + ")",
+    )
+    parser.add_argument(
+        "--gradient-layouts",
+        default="1,2000",
+        metavar="NS",
+        help="batch sizes of the gradient/forward ratio (default 1,2000; empty skips it)",
+    )
+    parser.add_argument(
+        "--json", default="tripodjax-latency.json", help="where to write the figures"
+    )
+    args = parser.parse_args(argv)
+    names = args.entries.split(",") if args.entries else None
+    results = latency(args.repeats, names)
+    print(latency_report(results))
+    sizes = [int(n) for n in args.gradient_layouts.split(",") if n]
+    if sizes:
+        import jax
+
+        import tripodjax as tj
+
+        results["gradient_to_forward"] = []
+        with jax.enable_x64(True):
+            for n in sizes:
+                g = gradient_to_forward(tj.Layout(*random_layouts(n)), repeats=max(args.repeats, 3))
+                results["gradient_to_forward"].append(g)
+                print(
+                    f"gradient (R, l, γ0) / forward cost of the summed irregularity, newton "
+                    f"float64, {n} layouts: {g['ratio']:.2f}"
+                )
     with open(args.json, "w") as f:
         json.dump(results, f, indent=2)
     print(f"figures written to {args.json}")

@@ -21,6 +21,7 @@ from collections.abc import Iterable
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.custom_derivatives import SymbolicZero
 from jax.typing import ArrayLike, DTypeLike
 
 from tripodjax import joint, solvers
@@ -476,8 +477,67 @@ def kinematic_metrics(
 
 @functools.partial(jax.jit, static_argnames=("n_theta", "solver"))
 def _kinematic_metrics(layout, *, n_theta, solver):
+    return _metrics_of_layout(layout, n_theta, solver)
+
+
+def _every_metric(layout, n_theta, solver):
     sol, rates = revolution(layout, n_theta, solver, with_rates=True)
     return KinematicMetrics(**metrics_from(layout, sol, rates, METRICS))
+
+
+@functools.partial(jax.custom_jvp, nondiff_argnums=(1, 2))
+def _metrics_of_layout(layout, n_theta, solver):
+    """Every metric of one layout; derivatives from its Jacobian w.r.t. the layout's fields.
+
+    The JVP rule forms the metrics and their Jacobian (forward mode, one direction per
+    differentiated field, in one linearisation) and answers a tangent with the Jacobian's
+    product: a gradient (``jax.grad``, reverse mode) then transposes that small product
+    alone, where transposing the revolution itself keeps some 170 arrays of the angle grid
+    for its reverse pass, in a second and larger program (the README's first example
+    compiled 3.6× faster so; see docs/speed-accuracy.md). Derivatives of any order follow:
+    the rule is itself differentiable.
+    """
+    return _every_metric(layout, n_theta, solver)
+
+
+def _metrics_of_layout_jvp(n_theta, solver, primals, tangents):
+    (layout,), (tangent,) = primals, tangents
+    leaves, tree = jax.tree_util.tree_flatten(layout)
+    moving = [
+        i
+        for i, (leaf, t) in enumerate(zip(leaves, tree.flatten_up_to(tangent), strict=True))
+        if not isinstance(t, SymbolicZero) and jnp.issubdtype(jnp.result_type(leaf), jnp.inexact)
+    ]
+    t_leaves = tree.flatten_up_to(tangent)
+
+    def of(*fields):
+        args = list(leaves)
+        for i, value in zip(moving, fields, strict=True):
+            args[i] = value
+        return _every_metric(tree.unflatten(args), n_theta, solver)
+
+    fields = [jnp.asarray(leaves[i], jnp.result_type(leaves[i], 0.0)) for i in moving]
+    if not fields or any(jnp.ndim(f) for f in fields):  # array fields: the plain JVP
+        return jax.jvp(of, tuple(fields), tuple(t_leaves[i] for i in moving))
+    dtype = jnp.result_type(*fields)
+    basis = jnp.eye(len(fields), dtype=dtype)
+    out, columns = jax.vmap(
+        lambda e: jax.jvp(
+            of, tuple(fields), tuple(e[k].astype(f.dtype) for k, f in enumerate(fields))
+        ),
+        out_axes=(None, 0),
+    )(basis)
+    weights = jnp.stack([jnp.asarray(t_leaves[i], dtype) for i in moving])
+
+    def combine(value, column):
+        if not jnp.issubdtype(value.dtype, jnp.inexact):
+            return np.zeros(jnp.shape(value), jax.dtypes.float0)
+        return jnp.tensordot(weights.astype(column.dtype), column, axes=1)
+
+    return out, jax.tree_util.tree_map(combine, out, columns)
+
+
+_metrics_of_layout.defjvp(_metrics_of_layout_jvp, symbolic_zeros=True)
 
 
 def raise_failure_of_revolution(
