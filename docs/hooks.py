@@ -424,6 +424,17 @@ def equation_map_markdown(config) -> str:
 BENCH = ROOT / "docs" / "bench"
 SWEEP_BENCH = "tripodjax-bench.json"
 OPTIMISER_BENCH = "optimize-bench.json"
+LATENCY_BENCH = "tripodjax-latency.json"
+# Issue 33's targets for each first answer, as multiples of the floor of the same run.
+LATENCY_TARGETS = {
+    "readme": "≤ 2",
+    "solve": "≤ 4",
+    "solve_l_gamma0": "≤ 4",
+    "solve_conformity": "≤ 4",
+    "solve_chance": "≤ 8",
+    "command_cold": "≤ 6",
+    "command_warm": "≤ 2",
+}
 COMPARED = ("delta_pp", "irregularity", "gamma_pp", "ecc_max")
 
 
@@ -711,6 +722,66 @@ def optimiser_tables(figures: dict, default_solver: tuple[str, int]) -> dict[str
     return tables
 
 
+def latency_tables(figures: dict) -> dict[str, list[str]]:
+    """The tables of ``python -m tripodjax.bench --latency``'s JSON, by marker name."""
+    rows = []
+    for name, e in figures["entries"].items():
+        largest = max(e["programs"], key=lambda p: p["compile_s"], default=None)
+        program = (
+            f"`{largest['name']}`, {largest['compile_s']:.1f} s, {largest['kb']:.0f} kB"
+            if largest
+            else "–"
+        )
+        rows.append(
+            [
+                e["what"],
+                f"{e['wall_s']:.1f}",
+                f"{e['over_floor']:.1f}",
+                f"{e['import_s']:.1f}",
+                f"{e['trace_s']:.1f}",
+                f"{e['compile_s']:.1f}",
+                f"{e['run_s']:.1f}",
+                str(len(e["programs"])),
+                program,
+                LATENCY_TARGETS.get(name, "–"),
+            ]
+        )
+    floors = figures["floors"]
+    tables = {
+        "latency": [
+            *_table(
+                [
+                    "first answer",
+                    "wall s",
+                    "× floor",
+                    "import s",
+                    "trace s",
+                    "compile s",
+                    "run s",
+                    "programs",
+                    "longest compile (s, StableHLO kB)",
+                    "target × floor",
+                ],
+                rows,
+            ),
+            "",
+            f"Floors of the same run: `import jax, tripodjax` {floors['library_s']:.2f} s, "
+            f"`import jax, matplotlib.pyplot` (the command's) {floors['command_s']:.2f} s; "
+            f"medians of {figures['repeats']} run(s).",
+        ]
+    }
+    gradient = figures.get("gradient_to_forward") or []
+    tables["gradient"] = _table(
+        ["layouts", "forward s", "gradient s", "gradient / forward"],
+        [
+            [str(g["layouts"]), _e(g["forward_s"]), _e(g["gradient_s"]), f"{g['ratio']:.2f}"]
+            for g in gradient
+        ],
+        right=0,
+    )
+    return tables
+
+
 def bench_markdown(markdown: str) -> str:
     """Replace each ``<!-- bench:NAME -->`` with its table from docs/bench/ and its provenance."""
     markers = set(re.findall(r"<!-- bench:([\w-]+) -->", markdown))
@@ -727,6 +798,7 @@ def bench_markdown(markdown: str) -> str:
             "python -m tripodjax.optimize.bench",
             lambda f: optimiser_tables(f, (solver["fidelity"], solver["n_theta"])),
         ),
+        LATENCY_BENCH: ("python -m tripodjax.bench --latency", latency_tables),
     }
     for name, (command, render) in sources.items():
         figures = json.loads((BENCH / name).read_text(encoding="utf-8"))

@@ -51,15 +51,8 @@ def measured_on() -> dict[str, Any]:
 
     import tripodjax
 
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as f:
-            names = [line.split(":", 1)[1].strip() for line in f if line.startswith("model name")]
-        cpu = names[0] if names else cpu
-    except OSError:
-        pass
     return {
-        "cpu": cpu,
+        "cpu": cpu_model(),
         "cpu_count": os.cpu_count(),
         "load_average": [round(x, 2) for x in os.getloadavg()]
         if hasattr(os, "getloadavg")
@@ -742,7 +735,7 @@ def latency(repeats: int = 3, names: Sequence[str] | None = None) -> dict[str, A
     Per repeat, the floors (``python -c "import jax, tripodjax"``, and for the command
     ``import jax, matplotlib.pyplot``) run just before the entries (interleaved: the machine
     may be shared); the figures are medians over the repeats, the programs those of the
-    median run. Returns {"cpu", "floors", "entries": {name: {...}}}.
+    median run. Returns {"measured_on", "repeats", "floors", "entries": {name: {...}}}.
     """
     import tempfile
 
@@ -796,8 +789,7 @@ def latency(repeats: int = 3, names: Sequence[str] | None = None) -> dict[str, A
             "programs": median["programs"],
         }
     return {
-        "cpu": cpu_model(),
-        "cpu_count": os.cpu_count(),
+        "measured_on": measured_on(),
         "repeats": repeats,
         # The command floor is the library's when no command entry ran.
         "floors": {"library_s": library, "command_s": command},
@@ -808,9 +800,9 @@ def latency(repeats: int = 3, names: Sequence[str] | None = None) -> dict[str, A
 def latency_report(results: dict[str, Any], programs: int = 4) -> str:
     """The latency table: per entry, wall seconds and its ratio to the floor, split into import,
     trace, lowering, compile and run, and its largest programs (compile s, StableHLO kB)."""
-    f = results["floors"]
+    f, machine = results["floors"], results["measured_on"]
     lines = [
-        f"compile latency — {results['cpu']}, {results['cpu_count']} cores; fresh process, empty "
+        f"compile latency — {machine['cpu']}, {machine['cpu_count']} cores; fresh process, empty "
         f"caches, medians of {results['repeats']}; floor `{LIBRARY_FLOOR}` {f['library_s']:.2f} s"
         + f", command floor `{COMMAND_FLOOR}` {f['command_s']:.2f} s",
         f"{'entry':<17} {'wall s':>7} {'× floor':>8} {'import':>7} {'trace':>6} {'lower':>6} "
@@ -960,6 +952,7 @@ def latency_main(argv: Sequence[str]) -> int:
                     f"gradient (R, l, γ0) / forward cost of the summed irregularity, newton "
                     f"float64, {n} layouts: {g['ratio']:.2f}"
                 )
+    results["measured_on"] = measured_on()  # the load average as the figures are written
     with open(args.json, "w") as f:
         json.dump(results, f, indent=2)
     print(f"figures written to {args.json}")
