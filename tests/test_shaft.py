@@ -371,3 +371,33 @@ def test_traced_bad_input_gives_nan(sheet):
     assert bool(jnp.all(jnp.isfinite(good.damage))) and int(good.result) == 0
     assert bool(jnp.all(jnp.isnan(bad.damage))) and not bool(bad.passed)
     assert int(bad.result) == int(RESULTS.nonfinite)
+
+
+def test_workbook_sections_are_sheet_5s_and_every_rear_verdict_is_positive(chain):
+    """Sheet 5's rear sections (shared/docs/workbook.md, fig. 4.3.5); sheet 7: all "Positive"."""
+    # name: (Øe, h, t, q, safety coefficient) as workbook.md states them.
+    stated = {
+        "A-A": (26.0, 5.6, 3.5, 1.6, 1.2),
+        "B-B": (27.5, 5.6, 3.5, 1.6, 1.2),
+        "C-C": (25.8, 5.6, 3.5, 1.6, 1.2),
+        "outboard stem": (30.685, 2.5, 3.5, 1.6, 1.3),
+        "inboard stem": (28.44, 1.2, 1.1, 1.6, 1.2),  # printed 20.44, read as a typing error
+    }
+    assert set(shaft.WORKBOOK_SECTIONS) == set(stated)
+    cycles, modes = chain
+    rows = shaft.fatigue_cycles(cycles, modes)
+    torque = np.array([float(cycles.M_max_forward), float(cycles.M_max_backward)])
+    for name, (section, material) in shaft.WORKBOOK_SECTIONS.items():
+        outer, h, t, q, safety = stated[name]
+        got = (section.outer_diameter, section.hardened_depth, section.transition_depth)
+        assert got == (outer, h, t) and section.inner_diameter == 0.0, name
+        assert (material.fatigue_ratio, material.safety) == (q, safety), name
+        assert (material.core_uts, material.surface_uts, material.depth_drop) == (690, 2180, 0.1)
+        assert bool(np.all(shaft.static_check(section, material, torque).passed)), name
+        assert bool(shaft.fatigue_check(section, material, rows).passed), name
+    stem = shaft.WORKBOOK_SECTIONS["outboard stem"][0]
+    assert float(shaft.polar_moment(stem)) == pytest.approx(87_037.0, rel=1e-4)
+    # 2180/1.2 = 1817 normal and 1049 shear at the surface (sheet 5's static limits).
+    section, material = shaft.WORKBOOK_SECTIONS["A-A"]
+    allowed = shaft.static_check(section, material, 1154.0).allowed_shear
+    assert float(allowed[0]) == pytest.approx(1049.0, abs=0.6)

@@ -79,6 +79,8 @@ inside ``jit`` an input outside its domain gives NaN, never a plausible number.
 """
 
 import math
+from collections.abc import Mapping
+from types import MappingProxyType
 
 import jax
 import jax.numpy as jnp
@@ -102,6 +104,7 @@ from tripodjax.vehicle import DrivingModes, LoadCycles
 
 __all__ = [
     "READINGS",
+    "WORKBOOK_SECTIONS",
     "EventRate",
     "FatigueCheck",
     "FatigueCycles",
@@ -209,6 +212,39 @@ class Material:
             lambda a: ~weak,
             f"surface_uts (1 − depth_drop) ≥ core_uts (= {_first(core, a=weak)} MPa)",
         )
+
+
+def _workbook_material(fatigue_ratio: float, safety: float) -> Material:
+    return Material(
+        core_uts=690.0,
+        surface_uts=2180.0,
+        depth_drop=0.10,
+        fatigue_ratio=fatigue_ratio,
+        safety=safety,
+    )
+
+
+WORKBOOK_SECTIONS: Mapping[str, tuple[Section, Material]] = MappingProxyType(
+    {
+        "A-A": (Section(26.0, 5.6, 3.5), _workbook_material(1.6, 1.2)),
+        "B-B": (Section(27.5, 5.6, 3.5), _workbook_material(1.6, 1.2)),
+        "C-C": (Section(25.8, 5.6, 3.5), _workbook_material(1.6, 1.2)),
+        "outboard stem": (Section(30.685, 2.5, 3.5), _workbook_material(1.6, 1.3)),
+        "inboard stem": (Section(28.44, 1.2, 1.1), _workbook_material(1.6, 1.2)),
+    }
+)
+"""The workbook's rear halfshaft, section by section (seed fig. 4.3.5, sheet 5): name → (Section, Material).
+
+The shaft's cross-sections A-A, B-B, C-C (42CrMo4: Øe 26, 27.5 and 25.8 mm, h 5.6,
+t 3.5 mm, safety coefficient 1.2), the outboard joint's stem ("Fixed FR", bell C53:
+Øe 30.685 mm — printed 30.69, the sheet's J = 87 037 mm⁴ needs 30.685 —, h 2.5, t 3.5,
+safety coefficient 1.3) and the inboard tripod's stem (h 1.2, t 1.1 mm, the rear's;
+safety coefficient 1.2). Every section: core σ_R,c 690 MPa, surface σ_R,s 2180 MPa (from
+the micro-hardness), Δ = 10 % at the depth h, the rear's UTS / fatigue ratio q = 1.6.
+The inboard stem's printed 20.44 mm fails both checks where the sheet says "Positive":
+it is read as a typing error for 28.44 mm (see the module docstring). The front axle
+is "no DS" (rear-wheel drive): its sections are not listed.
+"""
 
 
 @checked_pytree_dataclass
