@@ -389,10 +389,16 @@ def _verdict(result):
             (c["margin"], name) for name, c in result.constraints.items() if c["margin"] < 0
         )
         listed = ", ".join(f"{name} (margin {m:+.3g})" for m, name in worst[:3])
-        return (
-            f"infeasible: no start reached feasibility; smallest violations: {listed}",
-            EXIT_NOT_CONVERGED,
+        # The solver may report a start within its acceptable level of feasibility, for its far
+        # better objective, beside another that was feasible (solver.ACCEPTABLE).
+        others = sum(start["feasible"] for start in result.starts)
+        which = (
+            f"the proposed design is just outside its limits ({others} other start(s) feasible "
+            "with a worse objective)"
+            if others
+            else "no start reached feasibility"
         )
+        return (f"infeasible: {which}; smallest violations: {listed}", EXIT_NOT_CONVERGED)
     if not result.converged:
         reasons = []
         if not result.kkt_converged:

@@ -394,3 +394,26 @@ def test_cli_with_a_swapped_cache_entry_runs_normally_and_repairs_it(cli_run, tm
     assert "Traceback" not in result.stderr
     assert _entries_hold_their_keys(cache / "exports")
     assert strict_json(out / "report.json")["converged"]
+
+
+def test_an_infeasible_verdict_says_whether_another_start_was_feasible():
+    """The solver may report a start just outside its limits for its far better objective
+    (solver.ACCEPTABLE) beside a feasible one: "no start reached feasibility" would be untrue."""
+    import types
+
+    from tripodjax.optimize.cli import EXIT_NOT_CONVERGED, _verdict
+
+    def result(*feasible_starts):
+        return types.SimpleNamespace(
+            result="successful",
+            feasible=False,
+            constraints={"life": {"margin": -3e-7}, "min_R_over_d": {"margin": 0.1}},
+            starts=[{"feasible": f} for f in feasible_starts],
+        )
+
+    message, status = _verdict(result(False, False))
+    assert status == EXIT_NOT_CONVERGED
+    assert message.startswith("infeasible: no start reached feasibility") and "life" in message
+    message, status = _verdict(result(False, True, True))
+    assert status == EXIT_NOT_CONVERGED and "no start reached" not in message
+    assert "2 other start(s) feasible" in message and "life (margin -3e-07)" in message
