@@ -336,7 +336,7 @@ def sweep(
             the solver level), and ``"gaf_rms"``, ``"gaf_peak"``,
             ``"gaf_third_order"`` [N] (these need ``gaf``; their status
             joins ``"result"``). Only these are computed, each at its level's
-            cost (the table in the README's "Speed" section): dψ/dθ only for
+            cost (the cost table of the documentation's "Speed and accuracy" page): dψ/dθ only for
             ``"irregularity"`` and the GAF; under ``analytic`` and
             ``closed_form`` the status and error estimate from the nodes and
             midway between them; ``"max_residual"`` evaluates the pair at
