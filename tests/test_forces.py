@@ -9,6 +9,7 @@ import pytest
 import reference
 
 from tripodjax import Layout, forces, friction, seed_case
+from tripodjax.results import RESULTS
 
 GREASE_A = friction.GREASE_A  # μ 0.06, λ 0.007
 NO_FRICTION = GREASE_A.replace(mu_slp=0.0, lam=0.0)
@@ -283,6 +284,16 @@ def test_roller_loads_and_power():
     assert float(slower.gaf_rms) == pytest.approx(float(r.gaf_rms), rel=1e-12)
 
 
+def test_without_torque_no_force_and_no_failure():
+    """T = 0 (a torque sweep's first row): every force 0, the load ratio 0/0 NaN, the solve
+    successful (it read nonfinite before)."""
+    r = forces.forces_halfshaft(CASE_N, forces.ForceInputs(0.0, GREASE_A), 120)
+    assert int(r.result) == int(RESULTS.successful)
+    assert np.isnan(float(r.roller_load_ratio))
+    for name in ("gaf_rms", "gaf_third_order", "lts_mean", "complementary_torque_steady"):
+        assert float(getattr(r, name)) == 0.0, name
+
+
 def test_statics_settles_the_factor_of_the_printed_gaf():
     """The mean normal load per roller is T/(3R) exactly (Σ N_k R = T at α = 0), so a friction μ_i
     per roller gives GAF = (T/3R) Σ μ_i, the default; the printed 3.2.15 is twice it."""
@@ -423,7 +434,7 @@ def test_nan_inputs_inside_jit_give_nan_and_a_code():
     result = jax.jit(run)(math.nan)
     assert math.isnan(float(result.gaf_rms)) and math.isnan(float(result.lts_mean))
     assert int(result.result) == int(forces.RESULTS.nonfinite)
-    assert int(jax.jit(run)(100.0).result) == int(forces.RESULTS.successful)
+    assert int(jax.jit(run)(100.0).result) == int(RESULTS.successful)
 
 
 def test_one_formula_from_gaf_to_lts():

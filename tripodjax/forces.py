@@ -459,7 +459,12 @@ def _evaluate(layout, sol, rates, inputs, names):
         if "lts_ripple" in names:
             out["lts_ripple"] = 0.5 * (jnp.max(resistance, -1) - jnp.min(resistance, -1))
     if "result" in names:
-        finite = jnp.all(jnp.stack([jnp.all(jnp.isfinite(v)) for v in out.values()]))
+        # Without torque the load ratio N_k / (T/3R) is 0/0: NaN, and no failure of the solve.
+        defined = {k: v for k, v in out.items() if k != "roller_load_ratio"}
+        ratio = out.get("roller_load_ratio")
+        finite = jnp.all(jnp.stack([jnp.all(jnp.isfinite(v)) for v in defined.values()]))
+        if ratio is not None:
+            finite &= jnp.all(jnp.isfinite(ratio) | (torque == 0))
         out["result"] = worst(
             jnp.max(sol.result), code_where(~finite, RESULTS.nonfinite, RESULTS.successful)
         )
@@ -484,7 +489,8 @@ class ForceResult:
             components [N·m].
         complementary_torque_third_order, complementary_torque_sixth_order:
             amplitudes of their orders 3 and 6 (the norm over X and Y) [N·m].
-        roller_load_ratio: the largest N_k over the revolution over T/(3R) [–].
+        roller_load_ratio: the largest N_k over the revolution over T/(3R) [–]
+            (NaN without torque: 0/0).
         friction_power: mean power dissipated by friction [W], running case.
         result: worst [`RESULTS`][tripodjax.results.RESULTS] code of the kinematics
             over the revolution, or ``nonfinite`` where a quantity is not finite.
