@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from tripodjax import Layout, friction, kinematic_metrics, solvers, sweep
+from tripodjax import Layout, forces, friction, kinematic_metrics, solvers, sweep
 from tripodjax.bench import domain_layouts, numpy_newton_metrics, random_layouts
 from tripodjax.halfshaft import analytic_halfshaft, solve_halfshaft, trigonometric_interpolation
 from tripodjax.results import RESULTS
@@ -62,6 +62,40 @@ def test_gaf_outputs_match_gaf_halfshaft():
         )
         assert result["gaf_rms"][i] == pytest.approx(float(one.rms), rel=1e-12)
         assert result["gaf_third_order"][i] == pytest.approx(float(one.third_order), rel=1e-12)
+
+
+FORCE_NAMES = ("gaf_third_order", "lts_mean", "complementary_torque_steady", "roller_load_ratio")
+
+
+@pytest.mark.parametrize("dtype, rel", [(np.float64, 1e-12), (np.float32, 2e-5)])
+def test_force_outputs_match_force_quantities(dtype, rel, request):
+    if dtype == np.float32:
+        request.getfixturevalue("float32_default")
+    batch = layouts(3, dtype=dtype)
+    inputs = forces.ForceInputs(600.0, mu_trunnion=0.02, plunge_speed=-5.0)
+    result = sweep(batch, outputs=FORCE_NAMES + ("irregularity", "result"), forces=inputs)
+    assert result.result_counts["successful"] == 3
+    for i in range(3):
+        one = forces.forces_halfshaft(
+            Layout(*(getattr(batch, f)[i] for f in ("R", "l", "gamma0"))), inputs
+        )
+        for name in FORCE_NAMES:
+            assert result[name].dtype == dtype
+            assert result[name][i] == pytest.approx(float(getattr(one, name)), rel=rel), name
+
+
+def test_force_outputs_are_refused_without_their_inputs_and_with_both():
+    batch, inputs = layouts(2), forces.ForceInputs(500.0)
+    with pytest.raises(ValueError, match="outputs lts_mean need forces=ForceInputs"):
+        sweep(batch, outputs=("lts_mean",), gaf=friction.GAFInputs(500.0))
+    with pytest.raises(ValueError, match="need gaf=GAFInputs.* or forces=ForceInputs"):
+        sweep(batch, outputs=("gaf_peak",))
+    with pytest.raises(ValueError, match="from gaf= .* or from forces= .*, not both"):
+        sweep(batch, outputs=("gaf_rms",), gaf=friction.GAFInputs(500.0), forces=inputs)
+    with pytest.raises(ValueError, match=r"forces.mu_trunnion has shape \(2,\); allowed: one"):
+        sweep(batch, outputs=("lts_mean",), forces=inputs.replace(mu_trunnion=np.zeros(2)))
+    with pytest.raises(TypeError, match="forces = 500.0 is not allowed"):
+        sweep(batch, outputs=("lts_mean",), forces=500.0)
 
 
 def test_newton_controls_are_passed_through_and_counted():

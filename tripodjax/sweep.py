@@ -22,6 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.typing import ArrayLike
 
+from tripodjax import forces as force_model
 from tripodjax import progress as progress_meters
 from tripodjax import solvers
 from tripodjax._checks import (
@@ -46,7 +47,11 @@ from tripodjax.results import RESULTS, worst
 
 KINEMATIC_OUTPUTS = METRICS
 GAF_OUTPUTS = ("gaf_rms", "gaf_peak", "gaf_third_order")
-OUTPUTS = KINEMATIC_OUTPUTS + GAF_OUTPUTS
+# The force model's quantities (tripodjax.forces): the GAF names among them come from whichever
+# of gaf= (Lee's friction) or forces= (the force model) is given; the others need forces=.
+FORCE_OUTPUTS = force_model.QUANTITIES
+FORCE_ONLY_OUTPUTS = tuple(name for name in FORCE_OUTPUTS if name not in GAF_OUTPUTS)
+OUTPUTS = KINEMATIC_OUTPUTS + GAF_OUTPUTS + FORCE_ONLY_OUTPUTS
 STATUS_OUTPUTS = ("result", "converged")
 DEFAULT_OUTPUTS = ("delta_pp", "irregularity", "gamma_pp", "ecc_max", "converged", "result")
 # Angles solved per compiled call: on a CPU a chunk's arrays should stay in cache (measured on
@@ -86,7 +91,19 @@ def _check_layouts(layouts):
     return shapes["R"][0]
 
 
-def _check_outputs(outputs: object, gaf: object) -> tuple[str, ...]:
+def _check_one_number(name: str, inputs: object) -> None:
+    """Every field of ``inputs`` (a pytree) one number, the same for every layout of a sweep."""
+    leaves = jax.tree_util.tree_leaves_with_path(inputs)
+    for path, leaf in leaves:
+        if not isinstance(leaf, jax.core.Tracer) and np.ndim(leaf) != 0:
+            field = f"{name}.{jax.tree_util.keystr(path, simple=True, separator='.')}"
+            raise ValueError(
+                f"{field} has shape {np.shape(leaf)}; allowed: one number for every layout "
+                "(shape ())"
+            )
+
+
+def _check_outputs(outputs: object, gaf: object, forces: object) -> tuple[str, ...]:
     allowed = f"a sequence of names among {', '.join(OUTPUTS)}"
     if isinstance(outputs, str | bytes):
         raise TypeError(
@@ -103,10 +120,23 @@ def _check_outputs(outputs: object, gaf: object) -> tuple[str, ...]:
         raise ValueError(
             f"outputs {unknown or outputs!r} not allowed; allowed: {', '.join(OUTPUTS)}"
         )
-    if any(name in GAF_OUTPUTS for name in outputs) and gaf is None:
+    gaf_names = ", ".join(n for n in outputs if n in GAF_OUTPUTS)
+    if gaf_names and gaf is not None and forces is not None:
         raise ValueError(
-            f"outputs {', '.join(n for n in outputs if n in GAF_OUTPUTS)} need "
-            "gaf=GAFInputs(torque, ...) (torque [N·m], friction constants, model, width)"
+            f"outputs {gaf_names} come from gaf= (Lee's friction) or from forces= (the force "
+            "model), not both; allowed: one of the two"
+        )
+    if gaf_names and gaf is None and forces is None:
+        raise ValueError(
+            f"outputs {gaf_names} need gaf=GAFInputs(torque, ...) (Lee's friction: torque "
+            "[N·m], friction constants, model, width) or forces=ForceInputs(torque, ...) "
+            "(the force model)"
+        )
+    force_names = ", ".join(n for n in outputs if n in FORCE_ONLY_OUTPUTS)
+    if force_names and forces is None:
+        raise ValueError(
+            f"outputs {force_names} need forces=ForceInputs(torque, ...) (the force model: "
+            "torque [N·m], friction, plunge speed)"
         )
     return tuple(dict.fromkeys(outputs))  # without repeats, in order
 
@@ -133,10 +163,12 @@ def _reject_removed(what: str, keywords: dict[str, object]) -> None:
 
 
 @functools.partial(jax.jit, static_argnames=("n_theta", "solver", "outputs"))
-def _evaluate_chunk(layouts, gaf, *, n_theta, solver, outputs):
+def _evaluate_chunk(layouts, gaf, forces, *, n_theta, solver, outputs):
     kinematic = tuple(name for name in outputs if name in KINEMATIC_OUTPUTS)
-    gaf_names = tuple(name for name in outputs if name in GAF_OUTPUTS)
-    with_rates = bool(gaf_names) or any(name in NEEDS_RATES for name in kinematic)
+    # The GAF names from the force model when forces= is given (sweep allows one of the two).
+    force_names = tuple(name for name in outputs if name in FORCE_OUTPUTS and forces is not None)
+    gaf_names = tuple(name for name in outputs if name in GAF_OUTPUTS and forces is None)
+    with_rates = bool(gaf_names or force_names) or any(name in NEEDS_RATES for name in kinematic)
 
     def solve(layout):
         return revolution(layout, n_theta, solver, with_rates=with_rates)
@@ -155,13 +187,23 @@ def _evaluate_chunk(layouts, gaf, *, n_theta, solver, outputs):
             lambda: result,
             lambda: jax.vmap(functools.partial(metrics, extremes="grid"))(layouts, solved)[0],
         )
+    codes = []  # the status of the GAF or the forces joins "result"
     if gaf_names:
         g = jax.vmap(lambda layout, s: gaf_from_revolution(layout, *s, gaf))(layouts, solved)
         result.update(gaf_rms=g.rms, gaf_peak=g.peak, gaf_third_order=g.third_order)
-        if "result" in result:
-            result["result"] = worst(result["result"], g.result)
-            if "converged" in result:
-                result["converged"] = result["result"] == RESULTS.successful
+        codes.append(g.result)
+    if force_names:
+        f = jax.vmap(
+            lambda layout, s: force_model.force_quantities(
+                layout, *s, forces, force_names + ("result",)
+            )
+        )(layouts, solved)
+        codes.append(f.pop("result"))
+        result.update(f)
+    if codes and "result" in result:
+        result["result"] = worst(result["result"], *codes)
+        if "converged" in result:
+            result["converged"] = result["result"] == RESULTS.successful
     return {name: result[name] for name in outputs}
 
 
@@ -313,6 +355,7 @@ def sweep(
     chunk_size: int | None = None,
     *,
     gaf: GAFInputs | None = None,
+    forces: force_model.ForceInputs | None = None,
     devices: Sequence[jax.Device] | None = None,
     progress: bool | progress_meters.ProgressMeter | None = None,
     throw: bool = False,
@@ -334,8 +377,9 @@ def sweep(
             ``"result"``, the worst [`RESULTS`][tripodjax.results.RESULTS] code per
             layout, and ``"error_estimate"``, the per-layout error estimate of
             the solver level), and ``"gaf_rms"``, ``"gaf_peak"``,
-            ``"gaf_third_order"`` [N] (these need ``gaf``; their status
-            joins ``"result"``). Only these are computed, each at its level's
+            ``"gaf_third_order"`` [N] (these need ``gaf`` or ``forces``), and
+            the force model's quantities (these need ``forces``); the status
+            of the GAF or the forces joins ``"result"``. Only these are computed, each at its level's
             cost (the cost table of the documentation's "Speed and accuracy" page): dψ/dθ only for
             ``"irregularity"`` and the GAF; under ``analytic`` and
             ``closed_form`` the status and error estimate from the nodes and
@@ -351,7 +395,17 @@ def sweep(
             when every output comes from the series (21 845 layouts with the
             default 8 nodes, at any n_theta).
         gaf: the GAF inputs, a [`GAFInputs`][tripodjax.friction.GAFInputs]
-            (torque, friction constants, model, width), for the GAF outputs.
+            (torque, friction constants, model, width), for the GAF outputs
+            from Lee's empirical friction (seed 3.2.15).
+        forces: the force model's inputs, a [`ForceInputs`][tripodjax.forces.ForceInputs]
+            (one number per field, for every layout), for its outputs
+            ``"gaf_sixth_order"``, ``"gaf_ninth_order"``, ``"lts_mean"``,
+            ``"lts_ripple"``, ``"complementary_torque_steady"``,
+            ``"complementary_torque_third_order"``,
+            ``"complementary_torque_sixth_order"``, ``"roller_load_ratio"``,
+            ``"friction_power"`` (see [`force_quantities`][tripodjax.forces.force_quantities]);
+            given, the GAF outputs come from the force model too (``gaf`` and
+            ``forces`` together with a GAF output is a ValueError).
         devices: devices to split each chunk over (default ``jax.devices()``:
             all devices of all processes).
         progress: ``None`` (a bar when standard error is a terminal and there
@@ -374,19 +428,26 @@ def sweep(
         _reject_removed("sweep", removed)
     n = _check_layouts(layouts)
     solver = solvers.resolve(solver)
-    outputs = _check_outputs(outputs, gaf)
+    outputs = _check_outputs(outputs, gaf, forces)
     _check_n_theta(n_theta)
     if gaf is not None:
         check_instance("gaf", gaf, GAFInputs, "a GAFInputs, e.g. tj.GAFInputs(torque=500.0)")
+    if forces is not None:
+        check_instance(
+            "forces", forces, force_model.ForceInputs, "a ForceInputs, e.g. tj.ForceInputs(500.0)"
+        )
+        _check_one_number("forces", forces)
     if chunk_size is not None:
         chunk_size = int(check_integer("chunk_size", chunk_size, minimum=1))
     devices = check_sweep_batch(n, None if gaf is None else gaf.torque, devices)
     status = bool(throw) or any(name in STATUS_OUTPUTS for name in outputs)
     computed = outputs + (("result",) if status and "result" not in outputs else ())
-    uses_gaf = any(name in GAF_OUTPUTS for name in computed)
+    uses_forces = any(name in FORCE_OUTPUTS for name in computed) and forces is not None
+    uses_gaf = any(name in GAF_OUTPUTS for name in computed) and not uses_forces
     evaluate = functools.partial(
         _evaluate_chunk,
         gaf=gaf if uses_gaf else None,
+        forces=forces if uses_forces else None,
         n_theta=n_theta,
         solver=solver,
         outputs=computed,
@@ -404,7 +465,8 @@ def sweep(
         raise_failure_of_revolution(codes[i], layout, n_theta, solver, "sweep", index=i)
         raise solvers.SolverError(
             f"sweep: layout {i}: {RESULTS(int(codes[i])).name} "
-            f"({RESULTS(int(codes[i])).describe()}) in the GAF over the revolution"
+            f"({RESULTS(int(codes[i])).describe()}) in the "
+            f"{'forces' if uses_forces else 'GAF'} over the revolution"
         )
     result = SweepResult((name, out[name]) for name in outputs)
     result.result_counts = count_results(codes) if codes is not None else None
