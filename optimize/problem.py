@@ -35,16 +35,18 @@ import jax.numpy as jnp
 import numpy as np
 from jax.scipy.special import ndtri
 
-from tripodjax import friction, hertz, life, vehicle
+from tripodjax import forces, friction, hertz, life, vehicle
 from tripodjax._checks import check_instance, check_layout_domain, real_scalar
 from tripodjax.kinematics import metrics_from, revolution
 from tripodjax.layout import Layout
 from tripodjax.optimize import uncertainty
 from tripodjax.optimize._compiled import call, rows_per_call
 from tripodjax.optimize.spec import (
+    FORCE_QUANTITIES,
     GAF_QUANTITIES,
     KINEMATIC_QUANTITIES,
     QUANTITIES,
+    REVOLUTION_QUANTITIES,
     VARIABLES,
     Spec,
 )
@@ -94,9 +96,9 @@ def quantities(structure, values, design):
     layout = Layout(R, design["l"], design["gamma0_deg"])
     h, loads = values["hertz"], values["loads"]
     q, codes, hertz_codes = {}, [], []
-    if needs & set(KINEMATIC_QUANTITIES + GAF_QUANTITIES):
-        # dΔ/dθ and dγ/dθ only for the quantities that use them (irregularity, GAF).
-        with_rates = bool(needs & {"irregularity", *GAF_QUANTITIES})
+    if needs & set(REVOLUTION_QUANTITIES):
+        # dΔ/dθ and dγ/dθ only for the quantities that use them (irregularity, GAF, forces).
+        with_rates = bool(needs & {"irregularity", *GAF_QUANTITIES, *FORCE_QUANTITIES})
         sol, rates = revolution(
             layout, structure.n_theta, structure.fidelity, with_rates=with_rates
         )
@@ -114,12 +116,21 @@ def quantities(structure, values, design):
             q[k] = metrics[names[k]]
         if "gamma_ripple" in q:
             q["gamma_ripple"] = jnp.degrees(q["gamma_ripple"])
-        if needs & set(GAF_QUANTITIES):
-            params = friction.GREASE_A.replace(lam=design["lam"], mu_slp=design["mu_slp"])
+        params = friction.GREASE_A.replace(lam=design["lam"], mu_slp=design["mu_slp"])
+        from_forces = {k: n for k, n in FORCE_QUANTITIES.items() if k in needs}
+        if structure.gaf_model == "forces":
+            from_forces.update({k: k for k in GAF_QUANTITIES if k in needs})
+        elif needs & set(GAF_QUANTITIES):
             inputs = friction.GAFInputs(loads["gaf_torque"], params, structure.gaf_model)
             gaf = friction.gaf_from_revolution(layout, sol, rates, inputs)
             codes.append(gaf.result)
             q.update(gaf_rms=gaf.rms, gaf_peak=gaf.peak, gaf_third_order=gaf.third_order)
+        if from_forces:
+            out = forces.force_quantities(
+                layout, sol, rates, force_inputs(values, params), (*from_forces.values(), "result")
+            )
+            codes.append(out["result"])
+            q.update({k: out[n] for k, n in from_forces.items()})
     if needs & {"static_capacity", "M_d", "M_sd"}:
         caps = hertz.capacities(
             d,
@@ -143,6 +154,21 @@ def quantities(structure, values, design):
     finite = jnp.all(jnp.stack([jnp.isfinite(v) for v in q.values()]))
     codes.append(jnp.where(finite, RESULTS.successful, RESULTS.nonfinite))
     return q, jnp.stack([worst(*codes), worst(*hertz_codes)])
+
+
+def force_inputs(values, params):
+    """The spec's [`ForceInputs`][tripodjax.forces.ForceInputs]: its [forces] section at
+    loads.gaf_torque with the design's friction ``params``."""
+    f = values["forces"]
+    rpm = math.pi / 30.0  # rad/s per rpm
+    return forces.ForceInputs(
+        values["loads"]["gaf_torque"],
+        params,
+        mu_trunnion=f["mu_trunnion"],
+        contact_angle=f["contact_angle"],
+        plunge_speed=f["plunge_speed_mm_s"],
+        lts_speed=f["lts_speed_rpm"] * rpm,
+    )
 
 
 def load_cycles(structure, values):

@@ -49,7 +49,7 @@ from tripodjax.optimize.problem import (
     limit_state,
     requirement_structure,
 )
-from tripodjax.optimize.spec import GAF_QUANTITIES, KINEMATIC_QUANTITIES, Spec
+from tripodjax.optimize.spec import REVOLUTION_QUANTITIES, Spec
 from tripodjax.results import RESULTS
 
 METHODS = ("form", "mc", "is", "all")
@@ -417,7 +417,7 @@ def reliability(
     design = _check(spec, design, method, samples, is_samples, chunk, seed)
     structure = requirement_structure(spec.structure)
     if chunk is None:
-        kinematic = structure.needs & set(KINEMATIC_QUANTITIES + GAF_QUANTITIES)
+        kinematic = structure.needs & set(REVOLUTION_QUANTITIES)
         chunk = DEFAULT_CHUNK_KINEMATIC if kinematic else DEFAULT_CHUNK
     values, x = design_values(spec, design)
     names = constraint_names(structure)

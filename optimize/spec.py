@@ -110,7 +110,16 @@ share = [0.30, 0.0, 0.0, 0.35, 0.35]
 grease = "A"           # "A" (μ_slp 0.06), "B" (0.09) or "dry" (0.30) (seed §3.2.3)
 # mu_slp = 0.06        # pure-sliding coefficient; when absent it comes from the grease
 lam = 0.007            # rolling resistance λ
-gaf_model = "stroke"   # "stroke" (no GAF at γ = 0) or "printed" (the seed's 3.2.14)
+gaf_model = "stroke"   # "stroke" (no GAF at γ = 0), "printed" (the seed's 3.2.14) or "forces" (the force model)
+
+[forces]
+# The force model (tripodjax.forces: quasi-static roller forces on the exact kinematics, §3.1) at
+# loads.gaf_torque with friction.mu_slp and friction.lam: the quantities lts, lts_ripple,
+# complementary_torque and roller_load_ratio, and the GAF when friction.gaf_model = "forces".
+mu_trunnion = 0.0          # roller–trunnion sliding friction (0: needle bearings)
+contact_angle_deg = 0.0    # contact angle of the roller on its flank [deg] (0: flat flanks)
+plunge_speed_mm_s = 10.0   # plunge speed of the LTS test [mm/s] (> 0 into the pot, < 0 out; not 0)
+lts_speed_rpm = 0.0        # shaft speed during the LTS test [rpm] (0: held still, the idle test)
 
 [objective]
 # Dimensionless: Σ w_<q> · <q> / <q>_ref over any quantity q (see the quantity table in the
@@ -173,6 +182,21 @@ QUANTITIES = {
     "gaf_rms": ("N", "RMS of the generated axial force at loads.gaf_torque (§3.2)"),
     "gaf_peak": ("N", "peak |GAF| at loads.gaf_torque"),
     "gaf_third_order": ("N", "third-order GAF amplitude at loads.gaf_torque"),
+    "lts": (
+        "N",
+        "load-to-stroke resistance: mean axial force against a plunge at "
+        "forces.plunge_speed_mm_s, at loads.gaf_torque (force model, §3.1)",
+    ),
+    "lts_ripple": ("N", "half the peak-to-peak of the LTS over a revolution (force model)"),
+    "complementary_torque": (
+        "N·m",
+        "steady complementary torque, the bending moment of the rollers on the housing, at "
+        "loads.gaf_torque (force model, §3.1)",
+    ),
+    "roller_load_ratio": (
+        "–",
+        "largest roller normal force over a revolution / (T/3R) at loads.gaf_torque (force model)",
+    ),
     "outer_diameter": ("mm", "outer-diameter proxy 2R + d"),
     "static_capacity": ("N·m", "static torque capacity M_s at P_s (§4.2)"),
     "M_d": ("N·m", "long-lasting dynamic capacity at P_d and γ0 (§4.2)"),
@@ -182,6 +206,15 @@ QUANTITIES = {
 }
 KINEMATIC_QUANTITIES = ("irregularity", "eccentricity", "gamma_ripple", "roller_stroke")
 GAF_QUANTITIES = ("gaf_rms", "gaf_peak", "gaf_third_order")
+# Quantity → its name in tripodjax.forces (the GAF's too when friction.gaf_model = "forces").
+FORCE_QUANTITIES = {
+    "lts": "lts_mean",
+    "lts_ripple": "lts_ripple",
+    "complementary_torque": "complementary_torque_steady",
+    "roller_load_ratio": "roller_load_ratio",
+}
+# The quantities computed from the halfshaft's revolution (a kinematic solve per design).
+REVOLUTION_QUANTITIES = KINEMATIC_QUANTITIES + GAF_QUANTITIES + tuple(FORCE_QUANTITIES)
 
 # Design variable → (section, its value's key inside (γ0 in rad), unit, domain (low, high, low
 # open)). Its key in the file is the variable's own name (gamma0_deg in degrees); report keys add
@@ -206,7 +239,7 @@ REPORT_KEYS = {
 }
 GREASE_MU_SLP = {"A": 0.06, "B": 0.09, "dry": 0.30}  # seed §3.2.3
 FIDELITIES = ("newton", "analytic")
-GAF_MODELS = ("stroke", "printed")
+GAF_MODELS = ("stroke", "printed", "forces")
 # Integer solver sizes: upper limits that keep a solve within memory and minutes.
 INTEGER_LIMITS = {
     "n_theta": (6, 3600, "a multiple of 6"),
@@ -292,6 +325,7 @@ class Structure:
 # Internal value (section, key) in radians → its key in the file (a pair: a nested table), in degrees.
 _SPEC_UNITS = {
     ("layout", "gamma0"): ("gamma0_deg", "deg"),
+    ("forces", "contact_angle"): ("contact_angle_deg", "deg"),
     ("life", "condition_angle"): (("conditions", "angle_deg"), "deg"),
     ("life", "condition_share"): (("conditions", "share"), None),
 }
@@ -926,6 +960,7 @@ def _check(table):
     v["friction"] = {"lam": _number(table, "friction", "lam", 0.0), "mu_slp": mu_slp}
     fixed.update(v["friction"])
     gaf_model = _string(table, "friction", "gaf_model", GAF_MODELS)
+    v["forces"] = _forces(table)
     terms, v["objective"] = _objective(table)
     constraints, v["constraints"], chances = _constraints(table)
     max_life = v["constraints"].get("max_life_km")
@@ -979,6 +1014,23 @@ def _check(table):
         )
     values = jax.tree_util.tree_map(lambda x: np.asarray(x, np.float64), v)
     return Spec(structure=structure, values=values, resolved=table)
+
+
+def _forces(table):
+    """The [forces] section (tripodjax.forces.ForceInputs' numbers), in internal units."""
+    plunge = _number(table, "forces", "plunge_speed_mm_s", unit=" mm/s")
+    if plunge == 0:
+        raise SpecError(
+            "forces.plunge_speed_mm_s = 0.0 is not allowed: a finite speed, not 0 (> 0 into the "
+            "pot, < 0 out: the LTS opposes a plunge)"
+        )
+    angle = _number(table, "forces", "contact_angle_deg", 0.0, 89.999, unit="°")
+    return {
+        "mu_trunnion": _number(table, "forces", "mu_trunnion", 0.0),
+        "contact_angle": math.radians(angle),
+        "plunge_speed_mm_s": plunge,
+        "lts_speed_rpm": _number(table, "forces", "lts_speed_rpm", unit=" rpm"),
+    }
 
 
 def _uncertainty(table, values, free):

@@ -8,9 +8,9 @@ import pytest
 from reference import reference_default_design, workbook_combined_km, workbook_wheel_torques
 from scipy.optimize import minimize
 
-from tripodjax import Layout, friction, hertz, kinematic_metrics, optimize
+from tripodjax import ForceInputs, Layout, forces, friction, hertz, kinematic_metrics, optimize
 from tripodjax.optimize import solver
-from tripodjax.optimize.problem import evaluate_catalogue, m_max
+from tripodjax.optimize.problem import evaluate_catalogue, m_max, quantities
 from tripodjax.optimize.sensitivity import sensitivities
 
 SPEC = optimize.load_spec()
@@ -89,6 +89,97 @@ def test_every_quantity_as_objective_and_constraint():
     assert out["quantities"]["gamma_ripple"] > 0
 
 
+FORCES_SPEC = """
+[objective]
+w_lts = 0.5
+lts_ref = 700.0
+[constraints]
+max_complementary_torque = 400.0
+max_roller_load_ratio = 1.5
+max_lts_ripple = 1e4
+[friction]
+gaf_model = "forces"
+[forces]
+mu_trunnion = 0.01
+contact_angle_deg = 5.0
+plunge_speed_mm_s = -20.0
+lts_speed_rpm = 30.0
+"""
+
+
+def test_force_quantities_equal_the_force_model_called_directly():
+    spec = optimize.parse_spec(FORCES_SPEC)
+    out = optimize.evaluate(spec, {"R": 24.0, "d_roller": 36.0})["quantities"]
+    with jax.enable_x64(True):
+        inputs = ForceInputs(
+            1000.0,
+            friction.GREASE_A,
+            mu_trunnion=0.01,
+            contact_angle=math.radians(5.0),
+            plunge_speed=-20.0,
+            lts_speed=30.0 * math.pi / 30.0,
+        )
+        one = forces.forces_halfshaft(
+            Layout(24.0, 500.0, math.radians(20.0)),
+            inputs,
+            n_theta=spec.structure.n_theta,
+            solver=spec.structure.fidelity,
+        )
+    pairs = {
+        "lts": one.lts_mean,
+        "lts_ripple": one.lts_ripple,
+        "complementary_torque": one.complementary_torque_steady,
+        "roller_load_ratio": one.roller_load_ratio,
+        "gaf_rms": one.gaf_rms,  # friction.gaf_model = "forces": the GAF from the force model
+    }
+    for name, value in pairs.items():
+        assert out[name] == pytest.approx(float(value), rel=1e-10), name
+
+
+def test_force_quantities_derivatives_match_central_differences():
+    spec = optimize.parse_spec(FORCES_SPEC)
+    structure, values = spec.structure, spec.values
+    names = ("lts", "lts_ripple", "complementary_torque", "roller_load_ratio", "gaf_rms")
+    variables = ("R", "l", "gamma0_deg", "lam", "mu_slp")
+    base = {"R": 24.0, "l": 500.0, "gamma0_deg": math.radians(18.0), "lam": 0.007, "mu_slp": 0.06}
+    with jax.enable_x64(True):
+        vals = jax.tree_util.tree_map(jax.numpy.asarray, values)
+
+        def of(point):
+            design = {
+                "d_roller": 36.0,
+                "conformity": 1.002,
+                **dict(zip(variables, point, strict=True)),
+            }
+            q, _ = quantities(structure, vals, design)
+            return jax.numpy.stack([q[n] for n in names])
+
+        point = np.array([base[v] for v in variables])
+        jacobian = np.asarray(jax.jit(jax.jacfwd(of))(point))
+        f = jax.jit(of)
+        for j, v in enumerate(variables):
+            h = 1e-5 * abs(point[j])
+            up, down = point.copy(), point.copy()
+            up[j] += h
+            down[j] -= h
+            fd = (np.asarray(f(up)) - np.asarray(f(down))) / (2 * h)
+            # central differences: truncation ~h², roundoff ~1e-16/h of each quantity's size
+            scale = np.abs(np.asarray(f(point))) / abs(point[j])
+            error = np.abs(jacobian[:, j] - fd)
+            assert np.all(error <= 1e-5 * np.abs(fd) + 1e-7 * scale), (v, jacobian[:, j], fd)
+
+
+def test_a_max_lts_constraint_binds_at_the_smallest_joint_that_meets_it():
+    spec = optimize.parse_spec("[constraints]\nmax_lts = 700.0\n[bounds]\nR = [15.0, 40.0]")
+    result = optimize.solve(spec, progress=False)
+    assert result.converged and result.feasible
+    lts = optimize.evaluate(spec, result.design)["quantities"]["lts"]
+    assert lts == pytest.approx(700.0, rel=1e-4)  # binding: the LTS falls like T/R
+    assert result.quantities["lts"] == pytest.approx(lts, rel=1e-9)
+    assert result.multipliers["max_lts"] > 0
+    assert "lts" not in SPEC.structure.needs  # computed only when a spec uses it
+
+
 @pytest.mark.parametrize(
     "design, error, message",
     [
@@ -119,6 +210,12 @@ LISTS = (
         ("[hertz\nP_s = 1", "is not valid TOML"),
         ("[hertz]\nconformity = 0.99", "hertz.conformity = 0.99 is not allowed"),
         ("[hertz]\nPs = 2000.0", "unknown key hertz.Ps; allowed here:"),
+        ("[forces]\nplunge_speed_mm_s = 0.0", "forces.plunge_speed_mm_s = 0.0 is not allowed"),
+        ("[forces]\ncontact_angle_deg = 90.0", "forces.contact_angle_deg = 90.0 is not allowed"),
+        ("[forces]\nmu_trunnion = -0.1", "forces.mu_trunnion = -0.1 is not allowed"),
+        ("[forces]\nlts_speed_rpm = nan", "forces.lts_speed_rpm = nan is not allowed"),
+        ("[forces]\nmu = 0.1", "unknown key forces.mu; allowed here: contact_angle_deg"),
+        ('[friction]\ngaf_model = "lee"', "allowed: 'stroke', 'printed', 'forces'"),
         ("[bounds]\nR = [30.0, 20.0]", "bounds.R = [30.0, 20.0] is not allowed"),
         ("[bounds]\nR = [15.0, 150.0]", "R/l ≤ 0.2"),
         ("[bounds]\nd_roller = [20.0, inf]", "bounds.d_roller[1] = inf is not allowed"),
