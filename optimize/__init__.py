@@ -13,6 +13,8 @@
 - [`evaluate_catalogue`][tripodjax.optimize.evaluate_catalogue] — the GE/GI sizes under the spec.
 - [`write_report`][tripodjax.optimize.write_report] — report.json, report.html and report.xlsx.
 - [`life_report`][tripodjax.optimize.life_report] — the life of a design, its damage by condition, gear and mode.
+- [`forces_report`][tripodjax.optimize.forces_report] — the forces inside the joint of a design
+  (GAF, LTS, complementary torque, roller loads; seed §3.1).
 """
 
 import importlib
@@ -27,6 +29,7 @@ _ATTRIBUTES = {
     "write_report": "document",
     "evaluate": "problem",
     "evaluate_catalogue": "problem",
+    "forces_report": "problem",
     "life_report": "problem",
     "reliability": "reliability",
     "sensitivities": "sensitivity",
@@ -49,6 +52,7 @@ if typing.TYPE_CHECKING:  # what the lazy attributes are, for type checkers and 
         constraint_landscape,
         evaluate,
         evaluate_catalogue,
+        forces_report,
         life_report,
     )
     from tripodjax.optimize.reliability import reliability
@@ -90,6 +94,7 @@ __all__ = [
     "constraint_landscape",
     "evaluate",
     "evaluate_catalogue",
+    "forces_report",
     "life_report",
     "load_spec",
     "pareto_front",

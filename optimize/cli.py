@@ -274,6 +274,7 @@ def _compute(args, given, command_line):
         constraint_landscape,
         evaluate,
         evaluate_catalogue,
+        forces_report,
         life_report,
     )
     from tripodjax.optimize.reliability import report_reliability
@@ -338,8 +339,9 @@ def _compute(args, given, command_line):
     try:
         life = life_report(spec, result.design)
         figures["damage.png"] = report.figure_damage(life)
-    except ValueError:  # a design outside the domain (a failed solve): no life section
-        life = None
+        forces = forces_report(spec, result.design)
+    except ValueError:  # a design outside the domain (a failed solve): no life, no forces
+        life = forces = None
     if reliability is not None:
         figures["importance.png"] = report.figure_importance(reliability)
     body = report.report_dict(
@@ -351,6 +353,7 @@ def _compute(args, given, command_line):
         full_fidelity=full,
         source=args.spec or "default",
         life=life,
+        forces=forces,
         reliability=reliability,
     )
     message, code = _verdict(result)

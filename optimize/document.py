@@ -320,6 +320,7 @@ def _quantities(report):
 _ABSENT = {
     "life": "the report has no life section (the life chain of this version does not give the life per working condition)",
     "reliability": "the spec has no uncertainty (no reliability section in the report)",
+    "forces": "the report has no forces section (written by a version without the force model, or the design is outside the layout domain)",
 }
 
 
@@ -376,6 +377,40 @@ def _damage(report):
         for d in _get(life, "damage_by_case")
     ]
     return Table("damage", "Damage shares by load case", columns, rows)
+
+
+# The forces table's rows: (report key, quantity, unit).
+_FORCE_ROWS = (
+    ("gaf_rms_N", "GAF, RMS", "N"),
+    ("gaf_peak_N", "GAF, peak", "N"),
+    ("gaf_third_order_N", "GAF, 3rd order", "N"),
+    ("gaf_sixth_order_N", "GAF, 6th order", "N"),
+    ("gaf_ninth_order_N", "GAF, 9th order", "N"),
+    ("lts_mean_N", "LTS, mean", "N"),
+    ("lts_ripple_N", "LTS, ripple (± about the mean)", "N"),
+    ("complementary_torque_steady_Nm", "complementary torque, steady", "N·m"),
+    ("complementary_torque_third_order_Nm", "complementary torque, 3rd order", "N·m"),
+    ("complementary_torque_sixth_order_Nm", "complementary torque, 6th order", "N·m"),
+    ("roller_load_ratio", "largest roller load / (T/3R)", "–"),
+)
+
+
+def _forces(report):
+    forces = report.get("forces")
+    if forces is None:
+        raise NotAvailable(_ABSENT["forces"])
+    columns = [Column("quantity", kind="text"), Column("unit", kind="text"), Column("value")]
+    rows = [[name, unit, cell(forces.get(key))] for key, name, unit in _FORCE_ROWS]
+    notes = [
+        f"The force model (quasi-static roller forces on the exact kinematics, seed §3.1) at "
+        f"T = {fmt(cell(forces.get('torque_Nm')))} N·m (T/3R = "
+        f"{fmt(cell(forces.get('nominal_roller_load_N')))} N per roller); LTS at a plunge of "
+        f"{fmt(cell(forces.get('plunge_speed_mm_s')))} mm/s and "
+        f"{fmt(cell(forces.get('lts_speed_rpm')))} rpm; trunnion μ "
+        f"{fmt(cell(forces.get('mu_trunnion')))}, contact angle "
+        f"{fmt(cell(forces.get('contact_angle_deg')))}°; result {forces.get('result', 'not given')}."
+    ]
+    return Table("forces", "Forces inside the joint", columns, rows, notes)
 
 
 def _reliability(report):
@@ -665,6 +700,7 @@ SECTIONS = (
     ("quantities", "Quantities", _quantities),
     ("life", "Life per working condition", _life),
     ("damage", "Damage shares by load case", _damage),
+    ("forces", "Forces inside the joint", _forces),
     ("reliability", "Reliability", _reliability),
     ("sensitivities", "Sensitivities", _sensitivities),
     ("switch", "Near-switch notes", _switch),

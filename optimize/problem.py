@@ -613,6 +613,63 @@ def life_report(spec: Spec, design: Mapping[str, float]) -> dict:
         return _life_report(spec.structure, values, x)
 
 
+# The forces section: quantity of tripodjax.forces → its report key (unit in the name).
+FORCE_REPORT_KEYS = {
+    "gaf_rms": "gaf_rms_N",
+    "gaf_peak": "gaf_peak_N",
+    "gaf_third_order": "gaf_third_order_N",
+    "gaf_sixth_order": "gaf_sixth_order_N",
+    "gaf_ninth_order": "gaf_ninth_order_N",
+    "lts_mean": "lts_mean_N",
+    "lts_ripple": "lts_ripple_N",
+    "complementary_torque_steady": "complementary_torque_steady_Nm",
+    "complementary_torque_third_order": "complementary_torque_third_order_Nm",
+    "complementary_torque_sixth_order": "complementary_torque_sixth_order_Nm",
+    "roller_load_ratio": "roller_load_ratio",
+}
+
+
+@functools.partial(jax.jit, static_argnums=0)
+def _forces_report(structure, values, x):
+    design = full_design(structure, values, x)
+    layout = Layout(design["R"], design["l"], design["gamma0_deg"])
+    params = friction.GREASE_A.replace(lam=design["lam"], mu_slp=design["mu_slp"])
+    sol, rates = revolution(layout, structure.n_theta, structure.fidelity, with_rates=True)
+    names = (*FORCE_REPORT_KEYS, "result")
+    return forces.force_quantities(layout, sol, rates, force_inputs(values, params), names)
+
+
+def forces_report(spec: Spec, design: Mapping[str, float]) -> dict:
+    """The ``forces`` section of the report for a design (spec units, as [`evaluate`][tripodjax.optimize.evaluate]).
+
+    The force model ([`tripodjax.forces`][tripodjax.forces], seed §3.1) of the design's
+    halfshaft over a revolution at ``loads.gaf_torque``, with the spec's ``[forces]`` and
+    friction, at the spec's solver level: ``{"torque_Nm", "nominal_roller_load_N"`` (T/3R),
+    ``"plunge_speed_mm_s", "lts_speed_rpm", "mu_trunnion", "contact_angle_deg"``, the
+    GAF (``gaf_rms_N``, ``gaf_peak_N``, ``gaf_third_order_N``, ``gaf_sixth_order_N``,
+    ``gaf_ninth_order_N``), the LTS (``lts_mean_N``, ``lts_ripple_N``), the complementary
+    torque (``complementary_torque_steady_Nm``, ``..._third_order_Nm``,
+    ``..._sixth_order_Nm``), ``roller_load_ratio`` and ``result`` (a RESULTS name)}``.
+    """
+    structure = check_spec(spec).structure
+    values, x = design_values(spec, design)
+    with jax.enable_x64(True):
+        out = _forces_report(structure, values, x)
+        torque = float(values["loads"]["gaf_torque"])
+        R = float(full_design(structure, values, x)["R"])
+        f = values["forces"]
+        return {
+            "torque_Nm": torque,
+            "nominal_roller_load_N": 1000.0 * torque / (3.0 * R),
+            "plunge_speed_mm_s": float(f["plunge_speed_mm_s"]),
+            "lts_speed_rpm": float(f["lts_speed_rpm"]),
+            "mu_trunnion": float(f["mu_trunnion"]),
+            "contact_angle_deg": math.degrees(float(f["contact_angle"])),
+            **{key: float(out[name]) for name, key in FORCE_REPORT_KEYS.items()},
+            "result": RESULTS(int(out["result"])).name,
+        }
+
+
 OWN_PROGRAM_ROWS = 128  # rows per call when the catalogue's structure is not the spec's
 
 

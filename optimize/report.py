@@ -156,12 +156,15 @@ def report_dict(
     full_fidelity=None,
     source="default",
     life=None,
+    forces=None,
     reliability=None,
 ):
     """Everything a reader needs: design, status, constraints, sensitivities, catalogue, spec.
 
     ``reliability``: the [`reliability`][tripodjax.optimize.reliability] answer at the
-    design, written as the report's ``reliability`` section when given. ``result`` must be
+    design, written as the report's ``reliability`` section when given; ``life`` and
+    ``forces`` those of [`life_report`][tripodjax.optimize.life_report] and
+    [`forces_report`][tripodjax.optimize.forces_report]. ``result`` must be
     the Result of ``spec`` (`check_pairing`).
     """
     check_pairing(result, spec)
@@ -191,6 +194,8 @@ def report_dict(
         report["full_fidelity"] = full_fidelity
     if life is not None:  # optimize.life_report of the design
         report["life"] = life
+    if forces is not None:  # optimize.forces_report of the design
+        report["forces"] = forces
     if result.sensitivities is not None:
         sens = result.sensitivities
         report["elasticities"] = sens["elasticities"]

@@ -2,6 +2,7 @@
 
 import contextlib
 import json
+import math
 import os
 import pathlib
 import re
@@ -11,10 +12,11 @@ import subprocess
 import sys
 import time
 
+import jax
 import pytest
 from reference import reference_default_design
 
-from tripodjax import optimize
+from tripodjax import Layout, forces, optimize
 
 SPEC = optimize.load_spec()
 
@@ -98,6 +100,21 @@ def test_cli_default_exits_0_and_writes_a_strict_report(cli_run):
     assert sum(c["damage_share"] for c in life["conditions"]) == pytest.approx(1.0)
     assert sum(c["damage_share"] for c in life["damage_by_case"]) == pytest.approx(1.0)
     assert "damage.png" in os.listdir(out)
+    forces_section = report["forces"]  # the force model at the design, beside Lee's GAF
+    with jax.enable_x64(True):
+        one = forces.forces_halfshaft(
+            Layout(report["design"]["R_mm"], 500.0, math.radians(20.0)),
+            forces.ForceInputs(1000.0),
+            n_theta=optimize.load_spec().structure.n_theta,
+        )
+    for name in ("gaf_rms", "gaf_third_order", "lts_mean", "lts_ripple"):
+        assert forces_section[f"{name}_N"] == pytest.approx(float(getattr(one, name)), rel=1e-9)
+    steady = forces_section["complementary_torque_steady_Nm"]
+    assert steady == pytest.approx(float(one.complementary_torque_steady), rel=1e-9)
+    assert forces_section["nominal_roller_load_N"] == pytest.approx(
+        1e6 / (3 * report["design"]["R_mm"]), rel=1e-12
+    )
+    assert forces_section["result"] == "successful"
     # The cheap default (n_theta 120) is re-checked at full fidelity.
     assert report["full_fidelity"]["n_theta"] == 360
     assert min(report["full_fidelity"]["constraints"].values()) > -1e-4

@@ -98,7 +98,9 @@ def run(tmp_path_factory):
 
 
 def without_sections(body):
-    body = {k: copy.deepcopy(v) for k, v in body.items() if k not in ("life", "reliability")}
+    body = {
+        k: copy.deepcopy(v) for k, v in body.items() if k not in ("life", "forces", "reliability")
+    }
     body["sensitivity_notes"].pop("switch_distance", None)
     return body
 
@@ -239,6 +241,7 @@ def test_optional_sections_render_in_chromium_and_say_why_when_absent(run, tmp_p
     absent = document.render_html(body)
     assert "Not available: the report has no life section" in absent
     assert "Not available: the spec has no uncertainty" in absent
+    assert "Not available: the report has no forces section" in absent
     assert "Not available: the report has no switch distances" in absent
 
 
@@ -264,7 +267,7 @@ def test_optional_sections_synthetic_tables_hold_their_numbers(run):
     assert sorted(r[2] for r in tables["switch"].rows) == [-0.0456, 0.0123]
     assert "0.01" in tables["switch"].notes[0]
     body = without_sections(body)
-    for name in ("life", "damage", "reliability", "switch"):
+    for name in ("life", "damage", "forces", "reliability", "switch"):
         assert document.tables(body)[name].unavailable  # absent: a reason, not a blank
 
 
@@ -400,6 +403,10 @@ def test_xlsx_round_trips_every_number_of_the_json(run):
             [r["condition"], r["angle [deg]"], r["share of the mileage [–]"], r["life [km]"]],
             [c["name"], c["angle_deg"], c["share"], c["life_km"]],
         )
+    # The forces inside the joint, every number as in report.json.
+    forces = {r["quantity"]: r["value"] for r in sheets["forces"]}
+    assert same(list(forces.values()), [body["forces"][k] for k, _, _ in document._FORCE_ROWS])
+    assert list(forces) == [name for _, name, _ in document._FORCE_ROWS]
     # The optional section absent from this run: a sheet that says why, no rows.
     assert sheets["reliability"] == []
 
