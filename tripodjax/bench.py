@@ -414,6 +414,9 @@ def gradient_to_forward(batch: Any, n_theta: int = 360, repeats: int = 3) -> dic
     }
 
 
+FORCES_ROW = "every force quantity"  # output_costs' row of the force model's whole set
+
+
 def output_costs(
     n_layouts: int = 20000,
     n_theta: int = 360,
@@ -423,26 +426,33 @@ def output_costs(
     """Seconds of ``sweep`` per level (float64) for the default outputs and for each output alone.
 
     Returns {level: {"default": s, "outputs": {name: s}}}; an output's share of the
-    default set is its time alone over the default set's time.
+    default set is its time alone over the default set's time. The GAF outputs come from
+    Lee's friction (``gaf=``), the force model's from ``forces=``; without ``outputs`` a
+    last row, ``FORCES_ROW``, times every quantity of the force model in one sweep (the
+    running and the LTS case over the revolution; issue 35's target: ≤ 3× the default set).
     """
     import tripodjax as tj
-    from tripodjax.sweep import DEFAULT_OUTPUTS, OUTPUTS
+    from tripodjax.sweep import DEFAULT_OUTPUTS, FORCE_ONLY_OUTPUTS, FORCE_OUTPUTS, OUTPUTS
 
     layouts = tj.Layout(*random_layouts(n_layouts))
-    gaf = tj.GAFInputs(500.0)
+    gaf, forces = tj.GAFInputs(500.0), tj.ForceInputs(500.0)
     names = tuple(outputs) if outputs is not None else OUTPUTS
     costs: dict[str, Any] = {"layouts": n_layouts, "default_outputs": list(DEFAULT_OUTPUTS)}
     for solver in SOLVERS:
 
-        def timed(selected, solver=solver):
+        def timed(selected, solver=solver, with_forces=False):
+            with_forces = with_forces or any(name in FORCE_ONLY_OUTPUTS for name in selected)
+            inputs = {"forces": forces} if with_forces else {"gaf": gaf}
             return _best_time(
-                lambda: tj.sweep(layouts, n_theta, solver, selected, gaf=gaf), repeats
+                lambda: tj.sweep(layouts, n_theta, solver, selected, **inputs), repeats
             )
 
         costs[solver] = {
             "default": timed(DEFAULT_OUTPUTS),
             "outputs": {name: timed((name,)) for name in names},
         }
+        if outputs is None:
+            costs[solver]["outputs"][FORCES_ROW] = timed(FORCE_OUTPUTS, with_forces=True)
     return costs
 
 

@@ -186,34 +186,56 @@ class RollerForces:
     rolling: jax.Array
 
 
+# Vectors are tuples of their fixed-frame components (x, y, z), each of shape (..., 3) over the
+# rollers: elementwise arithmetic on whole arrays, which XLA vectorises along the angles (a
+# trailing axis of 3 components would not be).
+
+
+def _cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _each_roller(angle):
+    """cos and sin of angle + k·2π/3 (2.4.7), (..., 3), from those of ``angle`` alone."""
+    c, s = jnp.cos(angle)[..., None], jnp.sin(angle)[..., None]
+    offsets = np.asarray(joint.ROLLER_OFFSETS, np.float64)
+    cos_k, sin_k = (jnp.asarray(f(offsets), c.dtype) for f in (np.cos, np.sin))
+    return c * cos_k - s * sin_k, s * cos_k + c * sin_k
+
+
 def _positions(R, l, gamma0, theta, psi, gamma, delta, delta_gamma):
-    """Roller centres C_k (..., 3, 3), trunnion axes â_k (..., 3, 3), track angles θ_k (..., 3)
-    and the roller–spider distances |r_k| (..., 3), from the solved angles (fixed frame)."""
-    theta_k = joint.roller_angles(theta)
-    cos_g, sin_g, cos_t, sin_t = jnp.cos(gamma), jnp.sin(gamma), jnp.cos(delta), jnp.sin(delta)
-    zero = jnp.zeros_like(gamma)
-    x_axis = jnp.stack([-cos_g * cos_t, -cos_g * sin_t, sin_g], axis=-1)  # X' (2.3.5), τ = Δ
-    y_axis = jnp.stack([sin_t, -cos_t, zero], axis=-1)  # Y'
-    psi_k = joint.roller_angles(psi)
-    trunnion = -(
-        jnp.cos(psi_k)[..., None] * x_axis[..., None, :]
-        + jnp.sin(psi_k)[..., None] * y_axis[..., None, :]
+    """Roller centres C_k and trunnion axes â_k (component tuples), the track angles' (cos θ_k,
+    sin θ_k) and the roller–spider distances |r_k|, each (..., 3), from the solved angles."""
+    track = _each_roller(theta)
+    cos_psi, sin_psi = _each_roller(psi)
+    cos_g, sin_g, cos_t, sin_t = (
+        f(x)[..., None] for x in (gamma, delta) for f in (jnp.cos, jnp.sin)
     )
-    _, _, z = joint.roller_centres(R, gamma, psi)  # Z_k − c (2.6.2)
+    # â_k = −(cos ψ_k X' + sin ψ_k Y'), X' = (−cos γ cos Δ, −cos γ sin Δ, sin γ), Y' = (sin Δ,
+    # −cos Δ, 0): the columns of the direction cosines 2.3.5 at τ = Δ.
+    trunnion = (
+        cos_psi * cos_g * cos_t - sin_psi * sin_t,
+        cos_psi * cos_g * sin_t + sin_psi * cos_t,
+        -cos_psi * sin_g,
+    )
+    # Z_k − c (2.6.2, as joint.roller_centres; cos 3ψ_k = cos 3ψ for every roller).
+    cos_3psi = jnp.cos(3.0 * psi)[..., None]
+    z = -0.5 * R * (sin_g / cos_g) * (2.0 * cos_psi + (1.0 - cos_g) * cos_3psi)
     half = 0.5 * delta_gamma
     plunge = 2.0 * l * jnp.sin(gamma0 + half) * jnp.sin(half)  # c = l (cos γ0 − cos γ)
-    axial = plunge[..., None] + z
-    centres = jnp.stack([R * jnp.cos(theta_k), R * jnp.sin(theta_k), axial], axis=-1)
-    distance = joint.roller_radial_distance(R, gamma, psi)
-    return centres, trunnion, theta_k, distance
+    centres = (R * track[0], R * track[1], plunge[..., None] + z)
+    # |r_k| = R + e (1 + 2 cos 2ψ_k) (joint.roller_radial_distance), cos 2ψ_k = 2 cos²ψ_k − 1.
+    e = joint.eccentricity(R, gamma)[..., None]
+    distance = R + e * (4.0 * cos_psi * cos_psi - 1.0)
+    return centres, trunnion, track, distance
 
 
 def _smooth_sign(x, width):
     return jnp.tanh(x / width)
-
-
-def _unit(v):
-    return v / jnp.sqrt(jnp.sum(v * v, axis=-1, keepdims=True))
 
 
 def _kinematics(R, l, gamma0, sol, rates):
@@ -221,16 +243,16 @@ def _kinematics(R, l, gamma0, sol, rates):
     args = (sol.theta, sol.psi, sol.gamma, sol.delta, sol.delta_gamma)
     tangents = (jnp.ones_like(sol.theta), rates.psi, rates.gamma, rates.delta, rates.delta_gamma)
     geometry = functools.partial(_positions, R, l, gamma0)
-    (centres, trunnion, theta_k, distance), (d_centres, _, _, d_distance) = jax.jvp(
+    (centres, trunnion, track, distance), (d_centres, _, _, d_distance) = jax.jvp(
         geometry, args, tangents
     )
-    return centres, trunnion, theta_k, d_centres[..., 2], d_distance
+    return centres, trunnion, track, d_centres[2], d_distance
 
 
 def _solve(R, kinematics, inputs, speed, plunge):
     """The force model at every angle of ``kinematics`` (``_kinematics``) for θ̇ = speed, v_p = plunge."""
-    centres, trunnion, theta_k, stroke_rate, distance_rate = kinematics
-    dtype = centres.dtype
+    centres, trunnion, (cos_k, sin_k), stroke_rate, distance_rate = kinematics
+    dtype = cos_k.dtype
     speed, plunge = jnp.asarray(speed, dtype), jnp.asarray(plunge, dtype)
     mu, lam = inputs.params.mu_slp, inputs.params.lam
     alpha, width = inputs.contact_angle, inputs.width
@@ -239,43 +261,40 @@ def _solve(R, kinematics, inputs, speed, plunge):
     inverse = inverse[..., None]
     axial_speed = stroke_rate * speed[..., None] + plunge[..., None]  # Ż_k + v_p [mm/s]
     trunnion_speed = distance_rate * speed[..., None]  # d|r_k|/dt [mm/s]
-    zero = jnp.zeros_like(theta_k)
-    e_r = jnp.stack([jnp.cos(theta_k), jnp.sin(theta_k), zero], axis=-1)
-    e_t = jnp.stack([-jnp.sin(theta_k), jnp.cos(theta_k), zero], axis=-1)
-    normal_dir = jnp.cos(alpha)[..., None, None] * e_t + jnp.sin(alpha)[..., None, None] * e_r
-    rolling_dir = _unit(jnp.cross(trunnion, normal_dir))
-    slip_dir = jnp.cross(normal_dir, rolling_dir)
-    rolling = axial_speed * rolling_dir[..., 2]  # v_k·t_k
-    slip = axial_speed * slip_dir[..., 2]  # v_k·b_k
+    zero = jnp.zeros_like(cos_k)
+    e_r, e_t = (cos_k, sin_k, zero), (-sin_k, cos_k, zero)
+    cos_a, sin_a = jnp.cos(alpha), jnp.sin(alpha)
+    normal_dir = tuple(cos_a * t + sin_a * r for t, r in zip(e_t, e_r, strict=True))
+    rolling_dir = _cross(trunnion, normal_dir)
+    length = jnp.sqrt(_dot(rolling_dir, rolling_dir))
+    rolling_dir = tuple(x / length for x in rolling_dir)
+    slip_dir = _cross(normal_dir, rolling_dir)
+    rolling = axial_speed * rolling_dir[2]  # v_k·t_k
+    slip = axial_speed * slip_dir[2]  # v_k·b_k
     sign_roll = _smooth_sign(rolling * inverse, width)
     # e_Z lies in the tangent plane (e_Z ⊥ n_k): v_k = (Ż_k + v_p)(cos β t_k + sin β b_k), β the
     # slip angle. The slip's sign is the stroke's times sin β's, each smoothed over the width: the
     # friction saturates beyond a slip-to-roll ratio of about the width, at any stroke speed.
-    sign_slip = _smooth_sign(axial_speed * inverse, width) * _smooth_sign(slip_dir[..., 2], width)
+    sign_slip = _smooth_sign(axial_speed * inverse, width) * _smooth_sign(slip_dir[2], width)
     sign_trunnion = _smooth_sign(trunnion_speed * inverse, width)
-    per_normal = (
-        normal_dir
-        - (mu * sign_slip)[..., None] * slip_dir
-        - (lam * sign_roll)[..., None] * rolling_dir
+    per_normal = tuple(
+        n - mu * sign_slip * b - lam * sign_roll * t
+        for n, b, t in zip(normal_dir, slip_dir, rolling_dir, strict=True)
     )
     # Roller balance along its trunnion: P_k·â_k = μ_t N_k σ(ṙ_k) gives Q_k = −κ_k N_k.
-    along = jnp.sum(per_normal * trunnion, axis=-1) - inputs.mu_trunnion * sign_trunnion
-    kappa = along / jnp.sum(e_r * trunnion, axis=-1)
-    g = per_normal - kappa[..., None] * e_r  # P_k = N_k g_k
+    along = _dot(per_normal, trunnion) - inputs.mu_trunnion * sign_trunnion
+    kappa = along / _dot(e_r, trunnion)
+    g = tuple(p - kappa * r for p, r in zip(per_normal, e_r, strict=True))  # P_k = N_k g_k
     # Torque about Z (N·mm) and the spider's balance across Z: three equations in N_k.
-    torque_row = R * jnp.sum(g * e_t, axis=-1)
-    columns = jnp.stack([torque_row, g[..., 0], g[..., 1]], axis=-2)  # (..., equation, roller)
-    shape = torque_row.shape[:-1]
-    rhs = jnp.stack(
-        [
-            jnp.broadcast_to(jnp.asarray(value, dtype), shape)
-            for value in (1000.0 * inputs.torque, inputs.transverse_x, inputs.transverse_y)
-        ],
-        axis=-1,
+    rows = (R * _dot(g, e_t), g[0], g[1])  # (equation)(..., roller)
+    shape = cos_k.shape[:-1]
+    rhs = tuple(
+        jnp.broadcast_to(jnp.asarray(value, dtype), shape)
+        for value in (1000.0 * inputs.torque, inputs.transverse_x, inputs.transverse_y)
     )
-    normal = _cramer(columns, rhs)
-    force = normal[..., None] * g
-    moment = jnp.sum(jnp.cross(centres, force), axis=-2) / 1000.0
+    normal = _cramer(rows, rhs)
+    force = tuple(normal * x for x in g)
+    moment = tuple(jnp.sum(m, axis=-1) / 1000.0 for m in _cross(centres, force))
     power = jnp.sum(
         normal
         * (
@@ -288,24 +307,22 @@ def _solve(R, kinematics, inputs, speed, plunge):
     return RollerForces(
         normal=normal,
         radial=-kappa * normal,
-        force=force,
-        axial=jnp.sum(force[..., 2], axis=-1),
-        moment=moment,
+        force=jnp.stack(force, axis=-1),
+        axial=jnp.sum(force[2], axis=-1),
+        moment=jnp.stack(moment, axis=-1),
         power=power / 1000.0,
         slip=slip,
         rolling=rolling,
     )
 
 
-def _cramer(a, b):
-    """x of a x = b for 3×3 ``a`` (..., 3, 3) by Cramer's rule (cross products), elementwise."""
-    c0, c1, c2 = a[..., 0], a[..., 1], a[..., 2]  # columns
-    cross12, cross20, cross01 = jnp.cross(c1, c2), jnp.cross(c2, c0), jnp.cross(c0, c1)
-    det = jnp.sum(c0 * cross12, axis=-1)
-    return (
-        jnp.stack([jnp.sum(b * c, axis=-1) for c in (cross12, cross20, cross01)], -1)
-        / det[..., None]
-    )
+def _cramer(rows, rhs):
+    """x of a x = b by Cramer's rule, elementwise: ``rows`` the three equations' coefficients,
+    each (..., 3) over the unknowns (the rollers); ``rhs`` the three right-hand sides (...)."""
+    c0, c1, c2 = (tuple(row[..., k] for row in rows) for k in range(3))  # columns
+    cross12, cross20, cross01 = _cross(c1, c2), _cross(c2, c0), _cross(c0, c1)
+    det = _dot(c0, cross12)
+    return jnp.stack([_dot(rhs, c) for c in (cross12, cross20, cross01)], -1) / det[..., None]
 
 
 def _case_motion(inputs, case):
