@@ -13,6 +13,8 @@
 - [`evaluate_catalogue`][tripodjax.optimize.evaluate_catalogue] — the GE/GI sizes under the spec.
 - [`write_report`][tripodjax.optimize.write_report] — report.json, report.html and report.xlsx.
 - [`life_report`][tripodjax.optimize.life_report] — the life of a design, its damage by condition, gear and mode.
+- [`halfshaft_report`][tripodjax.optimize.halfshaft_report] — the rest of the halfshaft: the
+  shaft's sections statically and in fatigue, and the outboard ball joint (seed §4.3).
 - [`forces_report`][tripodjax.optimize.forces_report] — the forces inside the joint of a design
   (GAF, LTS, complementary torque, roller loads; seed §3.1).
 """
@@ -30,6 +32,7 @@ _ATTRIBUTES = {
     "evaluate": "problem",
     "evaluate_catalogue": "problem",
     "forces_report": "problem",
+    "halfshaft_report": "structural",
     "life_report": "problem",
     "reliability": "reliability",
     "sensitivities": "sensitivity",
@@ -67,6 +70,7 @@ if typing.TYPE_CHECKING:  # what the lazy attributes are, for type checkers and 
         load_spec,
         parse_spec,
     )
+    from tripodjax.optimize.structural import halfshaft_report
 
 
 def __getattr__(name: str) -> typing.Any:
@@ -95,6 +99,7 @@ __all__ = [
     "evaluate",
     "evaluate_catalogue",
     "forces_report",
+    "halfshaft_report",
     "life_report",
     "load_spec",
     "pareto_front",

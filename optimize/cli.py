@@ -268,7 +268,7 @@ def _compute(args, given, command_line):
         # JAX's default also names a GPU autotuning folder inside the cache in every entry's
         # key: a cache copied or moved to another path would miss. Unused on CPU.
         jax.config.update("jax_persistent_cache_enable_xla_caches", "none")
-    from tripodjax.optimize import document, report
+    from tripodjax.optimize import document, report, structural
     from tripodjax.optimize._compiled import export_cache, rows_per_call
     from tripodjax.optimize.problem import (
         constraint_landscape,
@@ -342,6 +342,10 @@ def _compute(args, given, command_line):
         forces = forces_report(spec, result.design)
     except ValueError:  # a design outside the domain (a failed solve): no life, no forces
         life = forces = None
+    try:
+        halfshaft = structural.halfshaft_report(spec)
+    except ValueError:  # no [vehicle]: the report's halfshaft section says why it is absent
+        halfshaft = None
     if reliability is not None:
         figures["importance.png"] = report.figure_importance(reliability)
     body = report.report_dict(
@@ -354,6 +358,7 @@ def _compute(args, given, command_line):
         source=args.spec or "default",
         life=life,
         forces=forces,
+        halfshaft=halfshaft,
         reliability=reliability,
     )
     message, code = _verdict(result)
@@ -374,6 +379,7 @@ def _compute(args, given, command_line):
         "message": message,
         "code": code,
         "designs": f"catalogue: {cat}; ad hoc: {_summary(result)}",
+        "halfshaft": structural.summary(halfshaft) if halfshaft else None,
         "status": f"KKT residual {result.kkt_residual:.2e} ({status})",
     }
 
@@ -437,6 +443,8 @@ def _write(args, outcome):
         f"optimize-joint: {outcome['designs']}, {outcome['status']}; "
         f"report in {os.path.join(args.out, 'report.json')}"
     )
+    if outcome["halfshaft"]:
+        print(f"optimize-joint: {outcome['halfshaft']}")
     for note in outcome["notes"]:  # e.g. report.xlsx not written: openpyxl missing
         print(f"optimize-joint: {note}", file=sys.stderr)
     if outcome["code"] != EXIT_OK:

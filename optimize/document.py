@@ -320,14 +320,13 @@ def _quantities(report):
 _ABSENT = {
     "life": "the report has no life section (the life chain of this version does not give the life per working condition)",
     "reliability": "the spec has no uncertainty (no reliability section in the report)",
+    "halfshaft": "the report has no halfshaft section (the spec has no [vehicle] to give the shaft's load cycles, or the report was written by a version without it)",
     "forces": "the report has no forces section (written by a version without the force model, or the design is outside the layout domain)",
 }
 
 
-def _life(report):
-    life = report.get("life")
-    if life is None:
-        raise NotAvailable(_ABSENT["life"])
+def _conditions(conditions):
+    """Columns and rows of a joint's life per working condition (the tripod's, the outboard's)."""
     columns = [
         Column("condition", kind="text"),
         Column("angle", "deg"),
@@ -335,22 +334,108 @@ def _life(report):
         Column("life", "km"),
         Column("share of the damage", "–"),
     ]
-    rows = [
-        [
-            c["name"],
-            cell(c.get("angle_deg")),
-            cell(c.get("share")),
-            cell(c.get("life_km")),
-            cell(c.get("damage_share")),
-        ]
-        for c in _get(life, "conditions")
-    ]
+    keys = ("angle_deg", "share", "life_km", "damage_share")
+    return columns, [[c["name"], *(cell(c.get(k)) for k in keys)] for c in conditions]
+
+
+def _life(report):
+    life = report.get("life")
+    if life is None:
+        raise NotAvailable(_ABSENT["life"])
+    columns, rows = _conditions(_get(life, "conditions"))
     notes = [
         f"Life {fmt(cell(life.get('km')))} km ({fmt(cell(life.get('hours')))} h) against "
         f"{fmt(cell(life.get('required_km')))} km required; angle law {life.get('angle_law', 'not given')}; "
         f"M_max forward {fmt(cell(life.get('M_max_forward_Nm')))} N·m, backward {fmt(cell(life.get('M_max_backward_Nm')))} N·m."
     ]
     return Table("life", "Life per working condition", columns, rows, notes)
+
+
+def _halfshaft_section(report):
+    halfshaft = report.get("halfshaft")
+    if halfshaft is None:
+        raise NotAvailable(_ABSENT["halfshaft"])
+    return halfshaft
+
+
+def _halfshaft(report):
+    h = _halfshaft_section(report)
+    columns = [
+        Column("part", kind="text"),
+        Column("check", kind="text"),
+        Column("required", kind="text"),
+        Column("value"),
+        Column("verdict", kind="text"),
+    ]
+    rows = []
+    for s in _get(h, "sections"):
+        safety, damage = cell(s.get("static_safety")), cell(s.get("damage"))
+        rows.append(
+            [
+                s["name"],
+                "static safety τ_adm/τ",
+                f"≥ {fmt(cell(s.get('required_static_safety')))}",
+                safety,
+                "passes" if s.get("static_passed") else "fails",
+            ]
+        )
+        rows.append(
+            [
+                s["name"],
+                "fatigue damage (Miner)",
+                f"< {fmt(cell(s.get('allowed_damage')))}",
+                damage,
+                "passes" if s.get("fatigue_passed") else "fails",
+            ]
+        )
+    o = _get(h, "outboard")
+    rows.append(
+        [
+            "outboard joint",
+            "static safety M_s/M_max",
+            f"≥ {fmt(cell(o.get('required_static_safety')))}",
+            cell(o.get("static_safety")),
+            "passes" if o.get("static_passed") else "fails",
+        ]
+    )
+    rows.append(
+        [
+            "outboard joint",
+            "life [km]",
+            f"≥ {fmt(cell(o.get('required_km')))}",
+            cell(o.get("life_km")),
+            "passes" if o.get("life_passed") else "fails",
+        ]
+    )
+    torque = _get(h, "static_torque_Nm")
+    notes = [
+        f"The halfshaft {'passes' if h.get('passed') else 'does NOT pass'}. Sections checked "
+        f"statically at M_max {fmt(cell(torque.get('forward')))} N·m forward and "
+        f"{fmt(cell(torque.get('backward')))} N·m backward and in fatigue under the vehicle's "
+        f"load → engine-brake cycles (reading {h.get('reading', 'not given')}); the outboard "
+        f"joint ({o.get('n_balls')} balls of {fmt(cell(o.get('ball_diameter_mm')))} mm on a "
+        f"{fmt(cell(o.get('pcr_mm')))} mm PCR: M_s {fmt(cell(o.get('M_s_Nm')))}, M_d "
+        f"{fmt(cell(o.get('M_d_Nm')))}, M_sd {fmt(cell(o.get('M_sd_Nm')))} N·m)."
+    ]
+    return Table("halfshaft", "The rest of the halfshaft", columns, rows, notes)
+
+
+def _outboard_life(report):
+    o = _get(_halfshaft_section(report), "outboard")
+    columns, rows = _conditions(_get(o, "conditions"))
+    return Table("outboard_life", "Outboard joint: life per working condition", columns, rows)
+
+
+def _shaft_damage(report):
+    sections = _get(_halfshaft_section(report), "sections")
+    columns = [Column("section", kind="text"), Column("gear", kind="text"), Column("damage", "–")]
+    rows = [
+        [s["name"], g["gear"], cell(g.get("damage"))] for s in sections for g in s["damage_by_gear"]
+    ]
+    notes = [
+        "Each section's damage by gear at its critical radius, summed over the driving modes and engine conditions."
+    ]
+    return Table("shaft_damage", "Shaft sections: damage by gear", columns, rows, notes)
 
 
 def _damage(report):
@@ -701,6 +786,9 @@ SECTIONS = (
     ("life", "Life per working condition", _life),
     ("damage", "Damage shares by load case", _damage),
     ("forces", "Forces inside the joint", _forces),
+    ("halfshaft", "The rest of the halfshaft", _halfshaft),
+    ("outboard_life", "Outboard joint: life per working condition", _outboard_life),
+    ("shaft_damage", "Shaft sections: damage by gear", _shaft_damage),
     ("reliability", "Reliability", _reliability),
     ("sensitivities", "Sensitivities", _sensitivities),
     ("switch", "Near-switch notes", _switch),

@@ -173,7 +173,7 @@ def force_inputs(values, params):
 
 def load_cycles(structure, values):
     """The vehicle's [`LoadCycles`][tripodjax.vehicle.LoadCycles] (the spec's [vehicle] and its k_s)."""
-    v, gears, modes = values["vehicle"], values["vehicle.gears"], values["vehicle.modes"]
+    v, gears = values["vehicle"], values["vehicle.gears"]
     car = vehicle.Vehicle(
         mass=v["mass_kg"],
         front_share=v["front_share"],
@@ -191,13 +191,20 @@ def load_cycles(structure, values):
         reverse_load_transfer=v["reverse_load_transfer_N"],
         differential_locking=v["differential_locking"],
     )
+    return vehicle.load_cycles(
+        car, driving_modes(structure, values), values["life"]["required_km"], axle=structure.axle
+    )
+
+
+def driving_modes(structure, values):
+    """The vehicle's [`DrivingModes`][tripodjax.vehicle.DrivingModes] (the spec's [vehicle.modes])."""
+    modes = values["vehicle.modes"]
     shape = (len(structure.vehicle_modes), -1)  # the spec keeps them flat, mode-major
     use = [
         jnp.reshape(jnp.asarray(modes[f"use_{c}_pct"]), shape) / 100.0
         for c in vehicle.ENGINE_CONDITIONS
     ]
-    use_modes = vehicle.DrivingModes(weight=modes["weight"], use=jnp.stack(use, axis=-1))
-    return vehicle.load_cycles(car, use_modes, values["life"]["required_km"], axle=structure.axle)
+    return vehicle.DrivingModes(weight=modes["weight"], use=jnp.stack(use, axis=-1))
 
 
 def m_max(structure, values):
@@ -210,20 +217,24 @@ def m_max(structure, values):
 _m_max = jax.jit(m_max, static_argnums=0)
 
 
+def load_spectrum(structure, values):
+    """The life's [`LoadSpectrum`][tripodjax.life.LoadSpectrum]: the vehicle's, or the [life] lists."""
+    v = values["life"]
+    if structure.spectrum_from_vehicle:
+        return vehicle.load_spectrum(load_cycles(structure, values))
+    return life.LoadSpectrum(
+        torque=v["torque"], speed=v["speed"], vehicle_speed=v["vehicle_speed"], share=v["share"]
+    )
+
+
 def joint_life(structure, values, design):
     """The [`Life`][tripodjax.life.Life] of the design under the spec's spectrum and conditions."""
     v = values["life"]
-    if structure.spectrum_from_vehicle:
-        spectrum = vehicle.load_spectrum(load_cycles(structure, values))
-    else:
-        spectrum = life.LoadSpectrum(
-            torque=v["torque"], speed=v["speed"], vehicle_speed=v["vehicle_speed"], share=v["share"]
-        )
     conditions = life.WorkingConditions(angle=v["condition_angle"], share=v["condition_share"])
     return life.joint_life(
         design["d_roller"],
         design["R"],
-        spectrum,
+        load_spectrum(structure, values),
         conditions,
         conformity=design["conformity"],
         P_d=values["hertz"]["P_d"],

@@ -157,6 +157,7 @@ def report_dict(
     source="default",
     life=None,
     forces=None,
+    halfshaft=None,
     reliability=None,
 ):
     """Everything a reader needs: design, status, constraints, sensitivities, catalogue, spec.
@@ -164,7 +165,8 @@ def report_dict(
     ``reliability``: the [`reliability`][tripodjax.optimize.reliability] answer at the
     design, written as the report's ``reliability`` section when given; ``life`` and
     ``forces`` those of [`life_report`][tripodjax.optimize.life_report] and
-    [`forces_report`][tripodjax.optimize.forces_report]. ``result`` must be
+    [`forces_report`][tripodjax.optimize.forces_report], ``halfshaft`` that of
+    [`halfshaft_report`][tripodjax.optimize.halfshaft_report]. ``result`` must be
     the Result of ``spec`` (`check_pairing`).
     """
     check_pairing(result, spec)
@@ -196,6 +198,8 @@ def report_dict(
         report["life"] = life
     if forces is not None:  # optimize.forces_report of the design
         report["forces"] = forces
+    if halfshaft is not None:  # optimize.halfshaft_report of the spec
+        report["halfshaft"] = halfshaft
     if result.sensitivities is not None:
         sens = result.sensitivities
         report["elasticities"] = sens["elasticities"]

@@ -121,6 +121,50 @@ contact_angle_deg = 0.0    # contact angle of the roller on its flank [deg] (0: 
 plunge_speed_mm_s = 10.0   # plunge speed of the LTS test [mm/s] (> 0 into the pot, < 0 out; not 0)
 lts_speed_rpm = 0.0        # shaft speed during the LTS test [rpm] (0: held still, the idle test)
 
+[shaft]
+# The halfshaft's sections that carry the torque (seed fig. 4.3.5, sheets 5–7; tripodjax.shaft):
+# the shaft's cross-sections and both joints' stems, each checked statically (at M_max forward
+# and backward, through the hardened layer) and in fatigue (the vehicle's load → engine-brake
+# cycles, Goodman, the semi-log S–N line, Miner's sum) in every optimize-joint report. One entry
+# per section in each list; the workbook's rear halfshaft (its inboard stem's printed 20.44 mm
+# read as 28.44 mm).
+names = ["A-A", "B-B", "C-C", "outboard stem", "inboard stem"]
+outer_diameter_mm = [26.0, 27.5, 25.8, 30.685, 28.44]  # Øe (at a spline, its root)
+inner_diameter_mm = [0.0, 0.0, 0.0, 0.0, 0.0]         # Øi (0: a round bar)
+hardened_depth_mm = [5.6, 5.6, 5.6, 2.5, 1.2]          # induction-hardened depth h
+transition_depth_mm = [3.5, 3.5, 3.5, 3.5, 1.1]        # transition t below it (h + t ≤ the wall)
+safety = [1.2, 1.2, 1.2, 1.3, 1.2]                     # safety coefficient C_s on the static limits
+core_uts_MPa = 690.0        # core ultimate strength σ_R,c (C53, 42CrMo4)
+surface_uts_MPa = 2180.0    # surface ultimate strength σ_R,s (from the micro-hardness)
+depth_drop = 0.10           # strength lost from the surface to the depth h
+fatigue_ratio = 1.6         # UTS / fatigue limit (the rear's 1.6; 2 where the sheet says so)
+allowed_damage = 1.0        # a section passes in fatigue when Miner's sum is below this
+reading = "consistent"      # "consistent" or "workbook" (the sheet's readings, docs/physics.md)
+
+[outboard]
+# The outboard fixed ball joint ("Fixed FR", seed fig. 4.3.10, second column; tripodjax.outboard):
+# its Hertz static safety (M_s / M_max, required ≥ loads.shock_factor like the tripod's) and its
+# life under its working conditions (required ≥ life.required_km), in every report.
+n_balls = 6
+ball_diameter_mm = 18.256
+pcr_mm = 29.958             # pitch-centre radius
+conformity = 1.003          # transverse conformity Ψ = 2 R_g / d
+longitudinal_conformity = 0.268  # χ_l of the curved tracks
+P_s = 3750.0                # allowed static contact pressure [MPa]
+P_d = 2150.0                # allowed long-lasting dynamic pressure [MPa]
+P_sd = 3200.0               # allowed short-lasting dynamic pressure [MPa]
+C_s = 1.1                   # safety coefficient on the pressure
+pressure_angle_deg = 45.0   # ε
+oblique_angle_deg = 0.0     # the tracks' oblique angle ζ
+tolerance = 0.15            # tolerance on the life's calculation spread (life × (1 + tolerance))
+reading = "consistent"      # "consistent" (exact Hertz μν) or "workbook" (the sheet's table)
+
+[outboard.conditions]
+# The outboard joint's working conditions (fig. 4.3.10): angles and shares of the mileage.
+names = ["static trim", "steering +", "steering -", "shock +", "shock -"]
+angle_deg = [6.0, 0.0, 0.0, 8.0, 10.5]
+share = [0.30, 0.0, 0.0, 0.35, 0.35]
+
 [objective]
 # Dimensionless: Σ w_<q> · <q> / <q>_ref over any quantity q (see the quantity table in the
 # docs). The references are the seed's case N with the workbook's joint (R 25.55 mm,
@@ -314,6 +358,11 @@ class Structure:
     inner_steps: int
     uncertainty: tuple = ()  # uncertainty.Input per uncertain number
     chance: tuple = ()  # (key, "probability" or "index", constrained requirement names)
+    shaft_sections: tuple = ()  # [shaft] section names
+    shaft_reading: str = "consistent"
+    outboard_balls: int = 6
+    outboard_reading: str = "consistent"
+    outboard_conditions: tuple = ()  # [outboard.conditions] names
 
     @property
     def needs(self):
@@ -326,6 +375,10 @@ class Structure:
 _SPEC_UNITS = {
     ("layout", "gamma0"): ("gamma0_deg", "deg"),
     ("forces", "contact_angle"): ("contact_angle_deg", "deg"),
+    ("outboard", "pressure_angle"): ("pressure_angle_deg", "deg"),
+    ("outboard", "oblique_angle"): ("oblique_angle_deg", "deg"),
+    ("outboard", "condition_angle"): (("conditions", "angle_deg"), "deg"),
+    ("outboard", "condition_share"): (("conditions", "share"), None),
     ("life", "condition_angle"): (("conditions", "angle_deg"), "deg"),
     ("life", "condition_share"): (("conditions", "share"), None),
 }
@@ -380,6 +433,11 @@ class Spec:
                 view[name] = value
         if section == "life" and "conditions" in view and self.structure.condition_names:
             view["conditions"]["names"] = list(self.structure.condition_names)
+        if section == "outboard" and "conditions" in view:
+            view["conditions"]["names"] = list(self.structure.outboard_conditions)
+            view["n_balls"] = self.structure.outboard_balls
+        if section == "shaft":
+            view["names"] = list(self.structure.shaft_sections)
         return view
 
     def replace_values(self, **sections: Mapping) -> "Spec":
@@ -928,20 +986,8 @@ def _check(table):
     spectrum_from_vehicle = not any(k in table["life"] for k in (*LIFE_LISTS, "spectrum_file"))
     if not spectrum_from_vehicle:
         life.update({k: np.asarray(x) for k, x in _spectrum(table).items()})
-    conditions = table["life"]["conditions"]
-    angles = _numbers(table, "life.conditions", "angle_deg", 0.0, 89.999, unit="°")
-    shares = _numbers(table, "life.conditions", "share", 0.0)
-    _shares("life.conditions.share", shares)
-    names = conditions.get("names", [f"condition {i + 1}" for i in range(len(angles))])
-    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
-        raise SpecError(f"life.conditions.names = {names!r} must be a list of strings")
-    if not len(angles) == len(shares) == len(names):
-        raise SpecError(
-            f"life.conditions lists have lengths angle_deg {len(angles)}, share {len(shares)}, "
-            f"names {len(names)}; they must have one length"
-        )
-    life["condition_angle"] = np.radians(np.asarray(angles))
-    life["condition_share"] = np.asarray(shares)
+    angles, shares, names = _conditions(table, "life")
+    life["condition_angle"], life["condition_share"] = angles, shares
     v["life"] = life
     modes, axle = (), "rear"
     if m_max_from_vehicle or spectrum_from_vehicle:
@@ -961,6 +1007,8 @@ def _check(table):
     fixed.update(v["friction"])
     gaf_model = _string(table, "friction", "gaf_model", GAF_MODELS)
     v["forces"] = _forces(table)
+    v["shaft"], shaft_sections, shaft_reading = _shaft(table)
+    v["outboard"], outboard_balls, outboard_reading, outboard_conditions = _outboard(table)
     terms, v["objective"] = _objective(table)
     constraints, v["constraints"], chances = _constraints(table)
     max_life = v["constraints"].get("max_life_km")
@@ -995,7 +1043,7 @@ def _check(table):
         free=tuple(k for k in VARIABLES if k in bounds),
         objective=terms,
         constraints=constraints,
-        condition_names=tuple(names),
+        condition_names=names,
         n_rollers=n_rollers,
         angle_law=angle_law,
         vehicle_modes=modes,
@@ -1007,6 +1055,11 @@ def _check(table):
         **sizes,
         uncertainty=inputs,
         chance=_chance_constraints(chances, constraints, inputs),
+        shaft_sections=shaft_sections,
+        shaft_reading=shaft_reading,
+        outboard_balls=outboard_balls,
+        outboard_reading=outboard_reading,
+        outboard_conditions=outboard_conditions,
     )
     if not structure.free:
         raise SpecError(
@@ -1014,6 +1067,118 @@ def _check(table):
         )
     values = jax.tree_util.tree_map(lambda x: np.asarray(x, np.float64), v)
     return Spec(structure=structure, values=values, resolved=table)
+
+
+def _conditions(table, section):
+    """A [<section>.conditions] table: (angles [rad], shares, names), checked."""
+    where = f"{section}.conditions"
+    angles = _numbers(table, where, "angle_deg", 0.0, 89.999, unit="°")
+    shares = _numbers(table, where, "share", 0.0)
+    _shares(f"{where}.share", shares)
+    names = table[section]["conditions"].get(
+        "names", [f"condition {i + 1}" for i in range(len(angles))]
+    )
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+        raise SpecError(f"{where}.names = {names!r} must be a list of strings")
+    if not len(angles) == len(shares) == len(names):
+        raise SpecError(
+            f"{where} lists have lengths angle_deg {len(angles)}, share {len(shares)}, "
+            f"names {len(names)}; they must have one length"
+        )
+    return np.radians(np.asarray(angles)), np.asarray(shares), tuple(names)
+
+
+# [shaft] lists, one entry per section: key → (low, low open, unit).
+SHAFT_LISTS = {
+    "outer_diameter_mm": (0.0, True, " mm"),
+    "inner_diameter_mm": (0.0, False, " mm"),
+    "hardened_depth_mm": (0.0, False, " mm"),
+    "transition_depth_mm": (0.0, False, " mm"),
+    "safety": (1.0, False, ""),
+}
+
+
+def _shaft(table):
+    """The [shaft] section: (numbers, section names, reading), each relation checked once, by
+    tripodjax.shaft's own Section and Material (the message names the section)."""
+    from tripodjax import shaft
+
+    names = table["shaft"]["names"]
+    if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
+        raise SpecError(f"shaft.names = {names!r} must be a non-empty list of strings")
+    if len(set(names)) != len(names):
+        raise SpecError(f"shaft.names = {names!r} must not repeat a name")
+    lists = {
+        key: _numbers(table, "shaft", key, low, low_open=low_open, unit=unit)
+        for key, (low, low_open, unit) in SHAFT_LISTS.items()
+    }
+    for key, entries in lists.items():
+        if len(entries) != len(names):
+            raise SpecError(
+                f"shaft.{key} has {len(entries)} entries and shaft.names {len(names)}; one per "
+                "section"
+            )
+    numbers = {
+        "core_uts_MPa": _number(table, "shaft", "core_uts_MPa", 0.0, low_open=True, unit=" MPa"),
+        "surface_uts_MPa": _number(
+            table, "shaft", "surface_uts_MPa", 0.0, low_open=True, unit=" MPa"
+        ),
+        "depth_drop": _number(table, "shaft", "depth_drop", 0.0, 1.0),
+        "fatigue_ratio": _number(table, "shaft", "fatigue_ratio", 1.0, low_open=True),
+        "allowed_damage": _number(table, "shaft", "allowed_damage", 0.0, low_open=True),
+    }
+    reading = _string(table, "shaft", "reading", shaft.READINGS)
+    for i, name in enumerate(names):
+        try:
+            shaft.Section(
+                lists["outer_diameter_mm"][i],
+                lists["hardened_depth_mm"][i],
+                lists["transition_depth_mm"][i],
+                lists["inner_diameter_mm"][i],
+            )
+            shaft.Material(
+                numbers["core_uts_MPa"],
+                numbers["surface_uts_MPa"],
+                numbers["depth_drop"],
+                numbers["fatigue_ratio"],
+                lists["safety"][i],
+            )
+        except ValueError as error:
+            raise SpecError(f"shaft section {name!r} (entry {i} of the lists): {error}") from None
+    return {**{k: np.asarray(x) for k, x in lists.items()}, **numbers}, tuple(names), reading
+
+
+def _outboard(table):
+    """The [outboard] section: (numbers, ball count, reading, condition names)."""
+    from tripodjax import outboard
+
+    n_balls = table["outboard"]["n_balls"]
+    if not isinstance(n_balls, int) or isinstance(n_balls, bool) or not 1 <= n_balls <= 24:
+        raise SpecError(
+            f"outboard.n_balls = {_integer_text(n_balls)} is not allowed: an integer from 1 to 24"
+        )
+    numbers = {
+        key: _number(table, "outboard", key, 0.0, low_open=True, unit=unit)
+        for key, unit in (
+            ("ball_diameter_mm", " mm"),
+            ("pcr_mm", " mm"),
+            ("P_s", " MPa"),
+            ("P_d", " MPa"),
+            ("P_sd", " MPa"),
+            ("C_s", ""),
+        )
+    }
+    numbers["conformity"] = _number(table, "outboard", "conformity", MIN_CONFORMITY)
+    numbers["longitudinal_conformity"] = _number(
+        table, "outboard", "longitudinal_conformity", -1.0, 1.0, low_open=True
+    )
+    pressure = _number(table, "outboard", "pressure_angle_deg", 0.0, 90.0, low_open=True, unit="°")
+    oblique = _number(table, "outboard", "oblique_angle_deg", 0.0, 89.999, unit="°")
+    numbers["pressure_angle"], numbers["oblique_angle"] = map(math.radians, (pressure, oblique))
+    numbers["tolerance"] = _number(table, "outboard", "tolerance", 0.0)
+    numbers["condition_angle"], numbers["condition_share"], names = _conditions(table, "outboard")
+    reading = _string(table, "outboard", "reading", outboard.READINGS)
+    return numbers, n_balls, reading, names
 
 
 def _forces(table):

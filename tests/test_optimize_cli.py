@@ -115,6 +115,17 @@ def test_cli_default_exits_0_and_writes_a_strict_report(cli_run):
         1e6 / (3 * report["design"]["R_mm"]), rel=1e-12
     )
     assert forces_section["result"] == "successful"
+    # The rest of the halfshaft (tests/test_structural.py checks its numbers).
+    halfshaft = report["halfshaft"]
+    assert [s["name"] for s in halfshaft["sections"]] == [
+        "A-A",
+        "B-B",
+        "C-C",
+        "outboard stem",
+        "inboard stem",
+    ]
+    assert halfshaft["passed"] and halfshaft["outboard"]["life_passed"]
+    assert "halfshaft: 5 sections and the outboard joint pass" in result.stdout
     # The cheap default (n_theta 120) is re-checked at full fidelity.
     assert report["full_fidelity"]["n_theta"] == 360
     assert min(report["full_fidelity"]["constraints"].values()) > -1e-4

@@ -99,7 +99,9 @@ def run(tmp_path_factory):
 
 def without_sections(body):
     body = {
-        k: copy.deepcopy(v) for k, v in body.items() if k not in ("life", "forces", "reliability")
+        k: copy.deepcopy(v)
+        for k, v in body.items()
+        if k not in ("life", "forces", "halfshaft", "reliability")
     }
     body["sensitivity_notes"].pop("switch_distance", None)
     return body
@@ -242,6 +244,7 @@ def test_optional_sections_render_in_chromium_and_say_why_when_absent(run, tmp_p
     assert "Not available: the report has no life section" in absent
     assert "Not available: the spec has no uncertainty" in absent
     assert "Not available: the report has no forces section" in absent
+    assert "Not available: the report has no halfshaft section" in absent
     assert "Not available: the report has no switch distances" in absent
 
 
@@ -407,6 +410,20 @@ def test_xlsx_round_trips_every_number_of_the_json(run):
     forces = {r["quantity"]: r["value"] for r in sheets["forces"]}
     assert same(list(forces.values()), [body["forces"][k] for k, _, _ in document._FORCE_ROWS])
     assert list(forces) == [name for _, name, _ in document._FORCE_ROWS]
+    # The rest of the halfshaft: each section's static safety and damage, the outboard joint.
+    halfshaft = body["halfshaft"]
+    values = [r["value"] for r in sheets["halfshaft"]]
+    expected = [x for s in halfshaft["sections"] for x in (s["static_safety"], s["damage"])]
+    outboard = halfshaft["outboard"]
+    assert same(values, expected + [outboard["static_safety"], outboard["life_km"]])
+    assert same(
+        [r["life [km]"] for r in sheets["outboard_life"]],
+        [c["life_km"] for c in outboard["conditions"]],
+    )
+    assert same(
+        [r["damage [–]"] for r in sheets["shaft_damage"]],
+        [g["damage"] for s in halfshaft["sections"] for g in s["damage_by_gear"]],
+    )
     # The optional section absent from this run: a sheet that says why, no rows.
     assert sheets["reliability"] == []
 

@@ -1,0 +1,262 @@
+"""The rest of the halfshaft, as the company validates it (seed §4.3, sheets 5–8): the shaft's
+sections and stems statically and in fatigue, and the outboard fixed ball joint.
+
+[`halfshaft_report`][tripodjax.optimize.halfshaft_report] checks the spec's ``[shaft]`` sections
+([`tripodjax.shaft`][tripodjax.shaft]) and its ``[outboard]`` joint
+([`tripodjax.outboard`][tripodjax.outboard]) under the spec's vehicle, with a verdict for each;
+``optimize-joint`` writes it as the report's ``halfshaft`` section beside the tripod's life.
+Requirements:
+
+- a section's static safety τ_adm/τ (its safety coefficient inside τ_adm) ≥ 1 at every kink of
+  its strength profile, under M_max forward and backward (the vehicle's largest working torques,
+  with the shock factor);
+- a section's fatigue damage (Miner's sum, at the outer radius and at the end of the hardened
+  layer) below ``shaft.allowed_damage`` (1);
+- the outboard joint's static safety M_s / M_max ≥ ``loads.shock_factor`` (the tripod's rule,
+  M_s ≥ k_s M_max) and its life ≥ ``life.required_km`` under its own working conditions.
+"""
+
+import functools
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from tripodjax import life, outboard, shaft
+from tripodjax.optimize.problem import (
+    check_spec,
+    driving_modes,
+    gear_names,
+    load_cycles,
+    load_spectrum,
+)
+from tripodjax.optimize.spec import Spec
+
+
+def _sections(values):
+    """The [shaft] sections and their materials, batched over the sections (leading axis)."""
+    s = values["shaft"]
+    n = jnp.shape(s["outer_diameter_mm"])[0]
+
+    def each(x):
+        return jnp.broadcast_to(jnp.asarray(x), (n,))
+
+    sections = shaft.Section(
+        s["outer_diameter_mm"],
+        s["hardened_depth_mm"],
+        s["transition_depth_mm"],
+        s["inner_diameter_mm"],
+    )
+    materials = shaft.Material(
+        each(s["core_uts_MPa"]),
+        each(s["surface_uts_MPa"]),
+        each(s["depth_drop"]),
+        each(s["fatigue_ratio"]),
+        s["safety"],
+    )
+    return sections, materials
+
+
+def outboard_joint(values):
+    """The spec's [`FixedJoint`][tripodjax.outboard.FixedJoint] (its [outboard] section)."""
+    o = values["outboard"]
+    return outboard.FixedJoint(
+        d=o["ball_diameter_mm"],
+        R=o["pcr_mm"],
+        conformity=o["conformity"],
+        longitudinal_conformity=o["longitudinal_conformity"],
+        P_s=o["P_s"],
+        P_d=o["P_d"],
+        P_sd=o["P_sd"],
+        C_s=o["C_s"],
+        pressure_angle=o["pressure_angle"],
+        oblique_angle=o["oblique_angle"],
+        tolerance=o["tolerance"],
+    )
+
+
+@functools.partial(jax.jit, static_argnums=0)
+def _halfshaft(structure, values):
+    cycles = load_cycles(structure, values)
+    torque = jnp.stack([cycles.M_max_forward, cycles.M_max_backward])
+    rows = shaft.fatigue_cycles(
+        cycles, driving_modes(structure, values), reading=structure.shaft_reading
+    )
+    sections, materials = _sections(values)
+    static = jax.vmap(lambda s, m: shaft.static_check(s, m, torque))(sections, materials)
+    fatigue = jax.vmap(
+        lambda s, m: shaft.fatigue_check(s, m, rows, reading=structure.shaft_reading)
+    )(sections, materials)
+    joint = outboard_joint(values)
+    o = values["outboard"]
+    caps = outboard.capacities(
+        joint, n_balls=structure.outboard_balls, reading=structure.outboard_reading
+    )
+    joint_life = outboard.joint_life(
+        joint,
+        load_spectrum(structure, values),
+        life.WorkingConditions(o["condition_angle"], o["condition_share"]),
+        n_balls=structure.outboard_balls,
+        angle_law=structure.angle_law,
+        reading=structure.outboard_reading,
+    )
+    return {
+        "torque": torque,
+        "static_safety": jnp.min(static.safety, axis=(-2, -1)),
+        "static_result": static.result,
+        "damage": fatigue.damage,  # (section, radius)
+        # damage per gear at each radius: summed over the modes and engine conditions
+        "damage_by_gear": jnp.sum(fatigue.damage_per_row, axis=(2, 4)),
+        "fatigue_result": fatigue.result,
+        "M_s": caps.M_s,
+        "M_d": caps.M_d,
+        "M_sd": caps.M_sd,
+        "hertz_result": caps.result,
+        "life_km": joint_life.km,
+        "km_per_condition": joint_life.km_per_condition,
+        "damage_per_condition": joint_life.damage_per_condition,
+        "life_result": joint_life.result,
+    }
+
+
+def _verdict(checks):
+    """ "passes: …" or "fails: …" from (passed, text) pairs, the failing ones named first."""
+    failed = [text for ok, text in checks if not ok]
+    return f"fails: {'; '.join(failed)}" if failed else f"passes: {'; '.join(t for _, t in checks)}"
+
+
+def summary(report: dict) -> str:
+    """One line for the command's output: the halfshaft's verdict, naming what fails."""
+    failed = [f"{x['name']} {x['result']}" for x in report["sections"] if "fails" in x["result"]]
+    if "fails" in report["outboard"]["result"]:
+        failed.append(f"outboard joint {report['outboard']['result']}")
+    if not failed:
+        return f"halfshaft: {len(report['sections'])} sections and the outboard joint pass"
+    return "halfshaft: " + "; ".join(failed)
+
+
+def halfshaft_report(spec: Spec) -> dict:
+    """The ``halfshaft`` section of the report: every [shaft] section and the outboard joint.
+
+    Needs the spec's ``[vehicle]`` (its load cycles: the working torques, the gears and the
+    driving modes); a spec that gives ``loads.M_max`` and the ``[life]`` lists instead raises
+    ValueError saying so. Returns (plain floats, strict JSON)::
+
+        {"reading", "static_torque_Nm": {"forward", "backward"},
+         "sections": [{"name", "outer_diameter_mm", "inner_diameter_mm", "hardened_depth_mm",
+            "static_safety", "required_static_safety", "static_passed", "damage",
+            "damage_outer", "damage_core", "allowed_damage", "fatigue_passed",
+            "damage_by_gear": [{"gear", "damage"}], "result"}],
+         "outboard": {"n_balls", "ball_diameter_mm", "pcr_mm", "M_s_Nm", "M_d_Nm", "M_sd_Nm",
+            "static_safety", "required_static_safety", "static_passed", "life_km",
+            "required_km", "life_passed",
+            "conditions": [{"name", "angle_deg", "share", "life_km", "damage_share"}], "result"},
+         "passed"}
+
+    ``damage`` is the larger of the two radii's (the outer one and the end of the hardened
+    layer, ``damage_core``); ``damage_by_gear`` is at that radius, summed over the driving modes
+    and engine conditions; ``result`` is the verdict in words. Runs in float64 (scoped to the
+    call); compiled once per spec structure.
+    """
+    structure = check_spec(spec).structure
+    if not structure.vehicle_modes:
+        raise ValueError(
+            "the halfshaft check needs the spec's [vehicle] (its gears and driving modes give "
+            "the sections' fatigue cycles); this spec gives loads.M_max and the load spectrum "
+            "instead"
+        )
+    values = spec.values
+    with jax.enable_x64(True):  # float64, scoped to this call
+        out = jax.tree_util.tree_map(np.asarray, _halfshaft(structure, values))
+    s, o = values["shaft"], values["outboard"]
+    forward, backward = map(float, out["torque"])
+    gears = gear_names(values)
+    sections = []
+    for i, name in enumerate(structure.shaft_sections):
+        outer, core = map(float, out["damage"][i])
+        critical = int(np.argmax(out["damage"][i]))
+        safety, allowed = float(out["static_safety"][i]), float(s["allowed_damage"])
+        damage = max(outer, core)
+        static_ok, fatigue_ok = safety >= 1.0, damage < allowed
+        sections.append(
+            {
+                "name": name,
+                "outer_diameter_mm": float(s["outer_diameter_mm"][i]),
+                "inner_diameter_mm": float(s["inner_diameter_mm"][i]),
+                "hardened_depth_mm": float(s["hardened_depth_mm"][i]),
+                "static_safety": safety,
+                "required_static_safety": 1.0,
+                "static_passed": bool(static_ok),
+                "damage": damage,
+                "damage_outer": outer,
+                "damage_core": core,
+                "allowed_damage": allowed,
+                "fatigue_passed": bool(fatigue_ok),
+                "damage_by_gear": [
+                    {"gear": gear, "damage": float(d)}
+                    for gear, d in zip(gears, out["damage_by_gear"][i, critical], strict=True)
+                ],
+                "result": _verdict(
+                    [
+                        (static_ok, f"static safety {safety:.3g} {'≥' if static_ok else '<'} 1"),
+                        (
+                            fatigue_ok,
+                            f"damage {damage:.3g} {'<' if fatigue_ok else '≥'} {allowed:g}",
+                        ),
+                    ]
+                ),
+            }
+        )
+    shock = float(values["loads"]["shock_factor"])
+    required_km = float(values["life"]["required_km"])
+    safety = float(out["M_s"]) / forward
+    km = float(out["life_km"])
+    static_ok, life_ok = safety >= shock, km >= required_km
+    conditions = [
+        {
+            "name": name,
+            "angle_deg": math.degrees(float(angle)),
+            "share": float(share),
+            "life_km": float(condition_km),
+            "damage_share": float(damage),
+        }
+        for name, angle, share, condition_km, damage in zip(
+            structure.outboard_conditions,
+            o["condition_angle"],
+            o["condition_share"],
+            out["km_per_condition"],
+            out["damage_per_condition"],
+            strict=True,
+        )
+    ]
+    joint = {
+        "n_balls": structure.outboard_balls,
+        "ball_diameter_mm": float(o["ball_diameter_mm"]),
+        "pcr_mm": float(o["pcr_mm"]),
+        "M_s_Nm": float(out["M_s"]),
+        "M_d_Nm": float(out["M_d"]),
+        "M_sd_Nm": float(out["M_sd"]),
+        "static_safety": safety,
+        "required_static_safety": shock,
+        "static_passed": bool(static_ok),
+        "life_km": km,
+        "required_km": required_km,
+        "life_passed": bool(life_ok),
+        "conditions": conditions,
+        "result": _verdict(
+            [
+                (static_ok, f"static safety {safety:.3g} {'≥' if static_ok else '<'} {shock:g}"),
+                (life_ok, f"life {km:.0f} km {'≥' if life_ok else '<'} {required_km:.0f} km"),
+            ]
+        ),
+    }
+    passed = all(x["static_passed"] and x["fatigue_passed"] for x in sections)
+    return {
+        "reading": structure.shaft_reading,
+        "outboard_reading": structure.outboard_reading,
+        "static_torque_Nm": {"forward": forward, "backward": backward},
+        "sections": sections,
+        "outboard": joint,
+        "passed": bool(passed and static_ok and life_ok),
+    }
