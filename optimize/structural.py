@@ -24,6 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from tripodjax import life, outboard, shaft
+from tripodjax.results import RESULTS
 from tripodjax.optimize.problem import (
     check_spec,
     driving_modes,
@@ -120,8 +121,21 @@ def _halfshaft(structure, values):
     }
 
 
-def _verdict(checks):
-    """ "passes: …" or "fails: …" from (passed, text) pairs, the failing ones named first."""
+def _requirement(name, value, relation, limit, text):
+    """(passed, words) of ``value relation limit`` (``relation`` "≥" or "<"); ``text`` formats
+    a number. A value that is not finite passes nothing: the words say it is not finite."""
+    if not math.isfinite(value):
+        return False, f"{name} not finite ({value!r})"
+    passed = value >= limit if relation == "≥" else value < limit
+    opposite = {"≥": "<", "<": "≥"}[relation]
+    return passed, f"{name} {text(value)} {relation if passed else opposite} {text(limit)}"
+
+
+def _verdict(checks, code=RESULTS.successful):
+    """ "passes: …" or "fails: …" from (passed, text) pairs, the failing ones named first;
+    a result code other than successful fails the verdict, in words."""
+    if code != RESULTS.successful:
+        return f"fails: not computed ({RESULTS(code).describe()})"
     failed = [text for ok, text in checks if not ok]
     return f"fails: {'; '.join(failed)}" if failed else f"passes: {'; '.join(t for _, t in checks)}"
 
@@ -178,7 +192,9 @@ def halfshaft_report(spec: Spec) -> dict:
         critical = int(np.argmax(out["damage"][i]))
         safety, allowed = float(out["static_safety"][i]), float(s["allowed_damage"])
         damage = max(outer, core)
-        static_ok, fatigue_ok = safety >= 1.0, damage < allowed
+        code = int(max(np.max(out["static_result"][i]), np.max(out["fatigue_result"][i])))
+        static = _requirement("static safety", safety, "≥", 1.0, lambda v: f"{v:.3g}")
+        fatigue = _requirement("damage", damage, "<", allowed, lambda v: f"{v:.3g}")
         sections.append(
             {
                 "name": name,
@@ -187,32 +203,30 @@ def halfshaft_report(spec: Spec) -> dict:
                 "hardened_depth_mm": float(s["hardened_depth_mm"][i]),
                 "static_safety": safety,
                 "required_static_safety": 1.0,
-                "static_passed": bool(static_ok),
+                "static_passed": static[0] and code == RESULTS.successful,
                 "damage": damage,
                 "damage_outer": outer,
                 "damage_core": core,
                 "allowed_damage": allowed,
-                "fatigue_passed": bool(fatigue_ok),
+                "fatigue_passed": fatigue[0] and code == RESULTS.successful,
                 "damage_by_gear": [
                     {"gear": gear, "damage": float(d)}
                     for gear, d in zip(gears, out["damage_by_gear"][i, critical], strict=True)
                 ],
-                "result": _verdict(
-                    [
-                        (static_ok, f"static safety {safety:.3g} {'≥' if static_ok else '<'} 1"),
-                        (
-                            fatigue_ok,
-                            f"damage {damage:.3g} {'<' if fatigue_ok else '≥'} {allowed:g}",
-                        ),
-                    ]
-                ),
+                "status": RESULTS(code).name,
+                "result": _verdict([static, fatigue], code),
             }
         )
     shock = float(values["loads"]["shock_factor"])
     required_km = float(values["life"]["required_km"])
-    safety = float(out["M_s"]) / forward
+    with np.errstate(divide="ignore", invalid="ignore"):  # no torque: no finite safety
+        safety = float(np.float64(out["M_s"]) / np.float64(forward))
     km = float(out["life_km"])
-    static_ok, life_ok = safety >= shock, km >= required_km
+    code = int(max(np.max(out["hertz_result"]), np.max(out["life_result"])))
+    static = _requirement("static safety", safety, "≥", shock, lambda v: f"{v:.3g}")
+    life_check = _requirement("life", km, "≥", required_km, lambda v: f"{v:.0f} km")
+    static_ok = static[0] and code == RESULTS.successful
+    life_ok = life_check[0] and code == RESULTS.successful
     conditions = [
         {
             "name": name,
@@ -244,12 +258,8 @@ def halfshaft_report(spec: Spec) -> dict:
         "required_km": required_km,
         "life_passed": bool(life_ok),
         "conditions": conditions,
-        "result": _verdict(
-            [
-                (static_ok, f"static safety {safety:.3g} {'≥' if static_ok else '<'} {shock:g}"),
-                (life_ok, f"life {km:.0f} km {'≥' if life_ok else '<'} {required_km:.0f} km"),
-            ]
-        ),
+        "status": RESULTS(code).name,
+        "result": _verdict([static, life_check], code),
     }
     passed = all(x["static_passed"] and x["fatigue_passed"] for x in sections)
     return {

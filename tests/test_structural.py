@@ -16,7 +16,9 @@ from test_vehicle import workbook_modes, workbook_vehicle
 
 from tripodjax import life, optimize, outboard, shaft, vehicle
 from tripodjax.optimize import document
+from tripodjax.optimize.report import strict
 
+SPEC = optimize.load_spec()
 LISTS = (
     "[loads]\nM_max = 1154.0\n[life]\ntorque = [1154.0, 350.0]\nspeed = [100.0, 1000.0]\n"
     "vehicle_speed = [28.0, 90.0]\nshare = [0.55, 0.45]\n"
@@ -129,6 +131,24 @@ def test_a_failing_section_is_named_with_its_check():
     fatigue = [r for r in table.rows if r[0] == "C-C" and r[1].startswith("fatigue")][0]
     assert fatigue[3] == c_c["damage"] and fatigue[4] == "fails"
     assert "does NOT pass" in table.notes[0]
+
+
+def test_a_vehicle_without_torque_passes_nothing_and_says_why():
+    """Working torques of 5e-324 N·m: no static safety, no damage is finite; nothing passes."""
+    torques = ", ".join(["5e-324"] * len(SPEC.values["vehicle"]["engine_torque_Nm"]))
+    report = optimize.halfshaft_report(
+        optimize.parse_spec(f"[vehicle]\nengine_torque_Nm = [{torques}]")
+    )
+    assert not report["passed"]
+    for s in report["sections"]:
+        assert not (s["static_passed"] or s["fatigue_passed"])
+        assert s["status"] == "nonfinite" and s["result"].startswith("fails: not computed (")
+    joint = report["outboard"]
+    assert not (joint["static_passed"] or joint["life_passed"])
+    assert "static safety not finite" in joint["result"]
+    notes = []
+    report_strict = strict(report, notes=notes)
+    assert notes and report_strict["sections"][0]["damage"] is None
 
 
 def test_without_a_vehicle_the_check_says_why():
