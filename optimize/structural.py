@@ -24,7 +24,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from tripodjax import life, outboard, shaft
-from tripodjax.results import RESULTS
 from tripodjax.optimize.problem import (
     check_spec,
     driving_modes,
@@ -33,6 +32,7 @@ from tripodjax.optimize.problem import (
     load_spectrum,
 )
 from tripodjax.optimize.spec import Spec
+from tripodjax.results import RESULTS
 
 
 def _sections(values):
