@@ -15,6 +15,7 @@ the one-sided derivative instead of the 0 that max − min over tying samples
 gives.
 """
 
+import contextlib
 import functools
 from collections.abc import Iterable
 
@@ -470,15 +471,10 @@ def kinematic_metrics(
     check_layout(layout)
     solver = solvers.resolve_legacy(solver, fidelity)
     _check_n_theta(n_theta)
-    metrics = _kinematic_metrics(layout, n_theta=n_theta, solver=solver)
+    metrics = _metrics_of_layout(layout, n_theta, solver)
     if throw:
         raise_failure_of_revolution(metrics.result, layout, n_theta, solver, "kinematic_metrics")
     return metrics
-
-
-@functools.partial(jax.jit, static_argnames=("n_theta", "solver"))
-def _kinematic_metrics(layout, *, n_theta, solver):
-    return _metrics_of_layout(layout, n_theta, solver)
 
 
 def _every_metric(layout, n_theta, solver):
@@ -486,30 +482,26 @@ def _every_metric(layout, n_theta, solver):
     return KinematicMetrics(**metrics_from(layout, sol, rates, METRICS))
 
 
-@functools.partial(jax.custom_jvp, nondiff_argnums=(1, 2))
-def _metrics_of_layout(layout, n_theta, solver):
-    """Every metric of one layout; derivatives from its Jacobian w.r.t. the layout's fields.
-
-    The JVP rule forms the metrics and their Jacobian (forward mode, one direction per
-    differentiated field, in one linearisation) and answers a tangent with the Jacobian's
-    product: a gradient (``jax.grad``, reverse mode) then transposes that small product
-    alone, where transposing the revolution itself keeps some 170 arrays of the angle grid
-    for its reverse pass, in a second and larger program (the README's first example
-    compiled 3.6× faster so; see docs/speed-accuracy.md). Derivatives of any order follow:
-    the rule is itself differentiable.
-    """
-    return _every_metric(layout, n_theta, solver)
-
-
-def _metrics_of_layout_jvp(n_theta, solver, primals, tangents):
-    (layout,), (tangent,) = primals, tangents
-    leaves, tree = jax.tree_util.tree_flatten(layout)
-    moving = [
-        i
-        for i, (leaf, t) in enumerate(zip(leaves, tree.flatten_up_to(tangent), strict=True))
-        if not isinstance(t, SymbolicZero) and jnp.issubdtype(jnp.result_type(leaf), jnp.inexact)
+def _differentiable(layout):
+    """The indices of the layout's leaves that are differentiated: its floating-point fields."""
+    leaves = jax.tree_util.tree_leaves(layout)
+    return [
+        i for i, leaf in enumerate(leaves) if jnp.issubdtype(jnp.result_type(leaf), jnp.inexact)
     ]
-    t_leaves = tree.flatten_up_to(tangent)
+
+
+@functools.partial(jax.jit, static_argnames=("n_theta", "solver"))
+def _metrics_and_jacobian(layout, *, n_theta, solver):
+    """Every metric of one layout and its Jacobian w.r.t. the layout's floating-point fields.
+
+    One program, one linearisation (forward mode, one direction per field): a plain call
+    and a derivative (``jax.grad``, ``jax.jacfwd``) of the same layout run this same
+    compiled program, where a forward program and a JVP program were compiled before (the
+    README's first example paid both; see docs/speed-accuracy.md). Under ``jax.jit`` of a
+    plain call, the unused Jacobian is removed by the compiler.
+    """
+    leaves, tree = jax.tree_util.tree_flatten(layout)
+    moving = _differentiable(layout)
 
     def of(*fields):
         args = list(leaves)
@@ -517,25 +509,73 @@ def _metrics_of_layout_jvp(n_theta, solver, primals, tangents):
             args[i] = value
         return _every_metric(tree.unflatten(args), n_theta, solver)
 
-    fields = [jnp.asarray(leaves[i], jnp.result_type(leaves[i], 0.0)) for i in moving]
-    if not fields or any(jnp.ndim(f) for f in fields):  # array fields: the plain JVP
-        return jax.jvp(of, tuple(fields), tuple(t_leaves[i] for i in moving))
+    fields = [leaves[i] for i in moving]
+    if not fields:
+        return of(), None
     dtype = jnp.result_type(*fields)
     basis = jnp.eye(len(fields), dtype=dtype)
-    out, columns = jax.vmap(
+    return jax.vmap(
         lambda e: jax.jvp(
             of, tuple(fields), tuple(e[k].astype(f.dtype) for k, f in enumerate(fields))
         ),
         out_axes=(None, 0),
     )(basis)
-    weights = jnp.stack([jnp.asarray(t_leaves[i], dtype) for i in moving])
+
+
+@functools.partial(jax.custom_jvp, nondiff_argnums=(1, 2))
+def _metrics_of_layout(layout, n_theta, solver):
+    """Every metric of one layout; derivatives from its Jacobian w.r.t. the layout's fields.
+
+    The JVP rule answers a tangent with the product of the Jacobian that
+    ``_metrics_and_jacobian`` forms beside the metrics: a gradient (``jax.grad``, reverse
+    mode) then transposes that small product alone, where transposing the revolution itself
+    keeps some 170 arrays of the angle grid for its reverse pass, in a second and larger
+    program. Derivatives of any order follow: the rule is itself differentiable.
+    """
+    return _metrics_and_jacobian(layout, n_theta=n_theta, solver=solver)[0]
+
+
+def _metrics_of_layout_jvp(n_theta, solver, primals, tangents):
+    (layout,), (tangent,) = primals, tangents
+    leaves, tree = jax.tree_util.tree_flatten(layout)
+    if any(jnp.ndim(leaf) for leaf in leaves):  # array fields (outside the public API): plain JVP
+        return jax.jvp(lambda lay: _every_metric(lay, n_theta, solver), (layout,), (tangent,))
+    if any(isinstance(leaf, jax.core.Tracer) for leaf in leaves):
+        out, columns = _metrics_and_jacobian(layout, n_theta=n_theta, solver=solver)
+    else:  # an eager derivative: the plain call's compiled program, not a partially evaluated copy
+        with _EVAL_CONTEXT():
+            out, columns = _metrics_and_jacobian(layout, n_theta=n_theta, solver=solver)
+    t_leaves = tree.flatten_up_to(tangent)
+    moving = _differentiable(layout)
+    if not moving:
+        return out, jax.tree_util.tree_map(_zero_tangent, out)
+    dtype = jnp.result_type(*(leaves[i] for i in moving))
+    weights = jnp.stack(
+        [
+            jnp.zeros((), dtype) if isinstance(t_leaves[i], SymbolicZero) else t_leaves[i]
+            for i in moving
+        ]
+    ).astype(dtype)
 
     def combine(value, column):
         if not jnp.issubdtype(value.dtype, jnp.inexact):
-            return np.zeros(jnp.shape(value), jax.dtypes.float0)
+            return _zero_tangent(value)
         return jnp.tensordot(weights.astype(column.dtype), column, axes=1)
 
     return out, jax.tree_util.tree_map(combine, out, columns)
+
+
+# Concrete primals reach a JVP rule under the derivative's own trace (partial evaluation), where
+# a jitted call is compiled anew as its "known" part; evaluated outside that trace it reuses the
+# plain call's program. JAX has no public spelling of this context: without it (another JAX
+# version), the derivative compiles its own copy, as before, and the results are the same.
+_EVAL_CONTEXT = getattr(jax._src.core, "eval_context", contextlib.nullcontext)
+
+
+def _zero_tangent(value):
+    if jnp.issubdtype(jnp.result_type(value), jnp.inexact):
+        return jnp.zeros_like(value)
+    return np.zeros(jnp.shape(value), jax.dtypes.float0)
 
 
 _metrics_of_layout.defjvp(_metrics_of_layout_jvp, symbolic_zeros=True)
