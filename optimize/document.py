@@ -590,11 +590,14 @@ def _validation(report):
             "the shock factor k_s; fatigue and life over the required mileage."
         )
     failed = [f"{r[0]}: {r[1].split(';')[0]}" for r in rows if r[6] != "passes"]
-    verdict = (
-        f"Not validated: {'; '.join(failed)} {'does' if len(failed) == 1 else 'do'} not pass."
-        if failed
-        else "Every check passes."
-    )
+    if failed:
+        verdict = (
+            f"Not validated: {'; '.join(failed)} {'does' if len(failed) == 1 else 'do'} not pass."
+        )
+    elif halfshaft is None:
+        verdict = "Not validated: the inboard tripod passes; the outboard joint and the shaft sections are not checked."
+    else:
+        verdict = "Every check passes."
     return Table(
         "validation", "Validation: requirements and verdicts", columns, rows, [verdict, *notes]
     )
@@ -1013,9 +1016,15 @@ def _conditions_text(conditions):
 def _inputs(report):
     spec = _get(report, "spec")
     columns = [Column("input", kind="text"), Column("value"), Column("unit", kind="text")]
+    from tripodjax.optimize.spec import LIFE_LISTS
+
     rows = []
     notes = []
-    if "vehicle" in spec:
+    life = _get(spec, "life")
+    explicit = [k for k in (*LIFE_LISTS, "spectrum_file") if k in life]
+    # The resolved spec keeps the default [vehicle]; it is used unless M_max and the spectrum
+    # are both given (optimize.spec).
+    if "vehicle" in spec and ("M_max" not in _get(spec, "loads") or not explicit):
         for path, name, unit in _VEHICLE_INPUTS:
             rows.append([name, _listed(_get(spec, *path)), unit])
         modes = _get(spec, "vehicle", "modes")
@@ -1028,12 +1037,15 @@ def _inputs(report):
         )
     else:
         notes.append(
-            "The spec has no [vehicle]: the largest torque and the load spectrum are given "
-            "directly (loads.M_max and the [life] lists), not from a vehicle."
+            "No vehicle is used: the spec gives the largest torque (loads.M_max) and the load "
+            "spectrum directly."
         )
     for path, name, unit in _USE_INPUTS:
         if path[-1] in spec.get(path[0], {}):
             rows.append([name, cell(_get(spec, *path)), unit])
+    for key in explicit:
+        unit = "" if key == "spectrum_file" else spec_unit(f"life.{key}")
+        rows.append([f"load spectrum: life.{key}", _listed(life[key]), unit])
     rows.append(
         [
             "working conditions of the inboard tripod: angle, share of the mileage",
@@ -1041,7 +1053,7 @@ def _inputs(report):
             "",
         ]
     )
-    if "outboard" in spec:
+    if report.get("halfshaft") is not None:
         rows.append(
             [
                 "working conditions of the outboard joint: angle, share of the mileage",
