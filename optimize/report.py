@@ -545,10 +545,8 @@ def figure_life_conditions(life=None, halfshaft=None):
         )
         ax.axhline(km, color="C2", lw=1.5)
         ax.axhline(required, color="C3", lw=1.2, ls="--")
-        ax.set(
-            title=f"{name}: {km:,.0f} km combined, {required:,.0f} km required",
-            xlabel="working condition: angle, share of the mileage",
-        )
+        ax.set_title(f"{name}\n{km:,.0f} km combined, {required:,.0f} km required", fontsize=10)
+        ax.set(xlabel="working condition: angle, share of the mileage")
         ax.grid(alpha=0.3, axis="y")
     axes[0].set(ylabel="life [km]")
     from matplotlib.lines import Line2D
