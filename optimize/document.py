@@ -357,6 +357,13 @@ def _life(report):
     return Table("life", "Life per working condition", columns, rows, notes)
 
 
+def _passes(passed):
+    """The verdict in words of a check: ``passed`` a bool, or NotAvailable (the reason)."""
+    if isinstance(passed, NotAvailable):
+        return passed
+    return "passes" if passed else "fails"
+
+
 def _halfshaft_section(report):
     halfshaft = report.get("halfshaft")
     if halfshaft is None:
@@ -382,7 +389,7 @@ def _halfshaft(report):
                 "static safety τ_adm/τ",
                 f"≥ {fmt(cell(s.get('required_static_safety')))}",
                 safety,
-                "passes" if s.get("static_passed") else "fails",
+                _passes(bool(s.get("static_passed"))),
             ]
         )
         rows.append(
@@ -391,7 +398,7 @@ def _halfshaft(report):
                 "fatigue damage (Miner)",
                 f"< {fmt(cell(s.get('allowed_damage')))}",
                 damage,
-                "passes" if s.get("fatigue_passed") else "fails",
+                _passes(bool(s.get("fatigue_passed"))),
             ]
         )
     o = _get(h, "outboard")
@@ -401,7 +408,7 @@ def _halfshaft(report):
             "static safety M_s/M_max",
             f"≥ {fmt(cell(o.get('required_static_safety')))}",
             cell(o.get("static_safety")),
-            "passes" if o.get("static_passed") else "fails",
+            _passes(bool(o.get("static_passed"))),
         ]
     )
     rows.append(
@@ -410,7 +417,7 @@ def _halfshaft(report):
             "life [km]",
             f"≥ {fmt(cell(o.get('required_km')))}",
             cell(o.get("life_km")),
-            "passes" if o.get("life_passed") else "fails",
+            _passes(bool(o.get("life_passed"))),
         ]
     )
     torque = _get(h, "static_torque_Nm")
@@ -442,13 +449,6 @@ def _shaft_damage(report):
         "Each section's damage by gear at its critical radius, summed over the driving modes and engine conditions."
     ]
     return Table("shaft_damage", "Shaft sections: damage by gear", columns, rows, notes)
-
-
-def _passes(passed):
-    """The verdict in words of a check: ``passed`` a bool, or NotAvailable (the reason)."""
-    if isinstance(passed, NotAvailable):
-        return passed
-    return "passes" if passed else "fails"
 
 
 def _quotient(a, b):
