@@ -13,7 +13,8 @@
   them there) when they are newer than the package sources and hold the same cells, and are
   executed here otherwise.
 - The report page shows an example `optimize-joint` report (report.html, its screenshot, its
-  A4 print and report.xlsx): taken from `$TRIPODJAX_REPORT_EXAMPLE` (default build/report-example/; the browser
+  A4 print, report.xlsx, validation.html and its A4 print): taken from
+  `$TRIPODJAX_REPORT_EXAMPLE` (default build/report-example/; the browser
   test tests/test_report_html.py leaves them there) when newer than the package sources, and
   made here otherwise (the command on the default spec, then headless Chromium's --screenshot).
 - The measured tables of the speed page (`<!-- bench:NAME -->`) are rendered from the benches'
@@ -137,7 +138,14 @@ def on_files(files, config):
 # ---------------------------------------------------------------------------------------------
 # the example report
 
-REPORT_FILES = ("report.html", "report.png", "report.pdf", "report.xlsx")
+REPORT_FILES = (
+    "report.html",
+    "report.png",
+    "report.pdf",
+    "report.xlsx",
+    "validation.html",
+    "validation.pdf",
+)
 CHROMIUM = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
 
 
@@ -219,6 +227,10 @@ def report_example_markdown(files) -> str:
         links.append("[its A4 print](report-example/report.pdf)")
     if "report.xlsx" in have:
         links.append("[the workbook](report-example/report.xlsx)")
+    if "validation.html" in have:
+        links.append("[the validation document](report-example/validation.html)")
+    if "validation.pdf" in have:
+        links.append("[its print](report-example/validation.pdf)")
     out += ["", "Open " + ", ".join(links) + "."]
     return "\n".join(out)
 

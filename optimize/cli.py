@@ -119,7 +119,9 @@ def _parse(argv):
             "spec's [bounds] say) that meets the Hertz static-capacity and life requirements and the "
             "spec's constraints at the lowest objective. Writes DIR/report.json (strict JSON: design, "
             "status, margins, sensitivities, the GE/GI catalogue choice, Pareto front), PNG plots, "
-            "report.html (the report to read or print) and report.xlsx (its tables). "
+            "report.html (the report to read or print), validation.html (the customer's "
+            "validation document: requirements, values and verdicts of both joints and the shaft "
+            "sections, with a revision and approval block) and report.xlsx (its tables). "
             "`optimize-joint compare DIR_A DIR_B` sets two reports side by side."
         ),
         epilog=(
@@ -142,6 +144,13 @@ def _parse(argv):
         action="store_true",
         help="add the reliability table (FORM, SORM, 10^5-sample Monte Carlo) with the default "
         "tolerances of the docs when the spec has no [uncertainty] (with one, it is always added)",
+    )
+    parser.add_argument(
+        "--revision",
+        default="0",
+        metavar="REV",
+        help="the revision of validation.html, the customer's validation document (default 0: "
+        '"Rev. 0")',
     )
     parser.add_argument(
         "--progress",
@@ -232,7 +241,10 @@ def _summary(result):
 
 def _main(argv):
     args = _parse(argv)
-    problem = _check_out(args.out)
+    if not args.revision.strip() or not args.revision.isprintable():
+        problem = f"--revision {args.revision!r} is empty or not printable; give e.g. 1 or B"
+    else:
+        problem = _check_out(args.out)
     if problem:
         print(f"optimize-joint: {problem}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -346,6 +358,10 @@ def _compute(args, given, command_line):
         halfshaft = structural.halfshaft_report(spec)
     except ValueError:  # no [vehicle]: the report's halfshaft section says why it is absent
         halfshaft = None
+    if life is not None or halfshaft is not None:
+        figures["life_conditions.png"] = report.figure_life_conditions(life, halfshaft)
+    if halfshaft is not None:
+        figures["shaft_damage.png"] = report.figure_shaft_damage(halfshaft)
     if reliability is not None:
         figures["importance.png"] = report.figure_importance(reliability)
     body = report.report_dict(
@@ -363,7 +379,7 @@ def _compute(args, given, command_line):
     )
     message, code = _verdict(result)
     body["message"] = message
-    body["written"] = document.written_info(command_line)
+    body["written"] = document.written_info(command_line, args.revision)
     documents, notes = document.documents(body, figures)
     cat = (
         f"{choice['family']} {choice['size']} (objective {choice['objective']:.5f})"

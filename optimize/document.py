@@ -8,6 +8,11 @@ version) and a number that is not finite are shown as "not available" with the r
 
 - ``report.html``: the template ``templates/report.html.j2`` (Jinja2, autoescaped); figures
   embedded as SVG data URIs; no script, no fetch; print styles for A4.
+- ``validation.html``: the document the company sends the customer (the workbook's sheets 7
+  and 8), ``templates/validation.html.j2``: the customer's inputs, the method, each joint's and
+  shaft section's requirement, value and verdict (the report's ``validation`` table, also in
+  report.json and a sheet of report.xlsx), the readings chosen, the revision and approval block;
+  at most 4 A4 pages printed.
 - ``report.xlsx``: a sheet per table, units in the headers, numbers as numbers, frozen
   header rows. Needs openpyxl (the ``report`` extra); without it the other files are written
   and one line says what to install.
@@ -46,7 +51,8 @@ class NotAvailable(Exception):
 class Column:
     header: str
     unit: str = ""
-    kind: str = ""  # "margin": a pass/fail mark beside the number; "text": never a number
+    kind: str = ""  # "margin": a pass/fail mark beside the number; "text": never a number;
+    # "verdict": "passes" or "fails" (shown as a pass or a fail)
 
     @property
     def label(self):
@@ -351,6 +357,13 @@ def _life(report):
     return Table("life", "Life per working condition", columns, rows, notes)
 
 
+def _passes(passed):
+    """The verdict in words of a check: ``passed`` a bool, or NotAvailable (the reason)."""
+    if isinstance(passed, NotAvailable):
+        return passed
+    return "passes" if passed else "fails"
+
+
 def _halfshaft_section(report):
     halfshaft = report.get("halfshaft")
     if halfshaft is None:
@@ -376,7 +389,7 @@ def _halfshaft(report):
                 "static safety τ_adm/τ",
                 f"≥ {fmt(cell(s.get('required_static_safety')))}",
                 safety,
-                "passes" if s.get("static_passed") else "fails",
+                _passes(bool(s.get("static_passed"))),
             ]
         )
         rows.append(
@@ -385,7 +398,7 @@ def _halfshaft(report):
                 "fatigue damage (Miner)",
                 f"< {fmt(cell(s.get('allowed_damage')))}",
                 damage,
-                "passes" if s.get("fatigue_passed") else "fails",
+                _passes(bool(s.get("fatigue_passed"))),
             ]
         )
     o = _get(h, "outboard")
@@ -395,7 +408,7 @@ def _halfshaft(report):
             "static safety M_s/M_max",
             f"≥ {fmt(cell(o.get('required_static_safety')))}",
             cell(o.get("static_safety")),
-            "passes" if o.get("static_passed") else "fails",
+            _passes(bool(o.get("static_passed"))),
         ]
     )
     rows.append(
@@ -404,7 +417,7 @@ def _halfshaft(report):
             "life [km]",
             f"≥ {fmt(cell(o.get('required_km')))}",
             cell(o.get("life_km")),
-            "passes" if o.get("life_passed") else "fails",
+            _passes(bool(o.get("life_passed"))),
         ]
     )
     torque = _get(h, "static_torque_Nm")
@@ -436,6 +449,158 @@ def _shaft_damage(report):
         "Each section's damage by gear at its critical radius, summed over the driving modes and engine conditions."
     ]
     return Table("shaft_damage", "Shaft sections: damage by gear", columns, rows, notes)
+
+
+def _quotient(a, b):
+    """``a / b`` as a cell; a cell that is not a number stays the reason."""
+    for x in (a, b):
+        if isinstance(x, NotAvailable):
+            return x
+    if b == 0:
+        return NotAvailable("divided by 0")
+    return cell(a / b)
+
+
+def _at_least(value, limit):
+    """``value ≥ limit`` of two cells, or the reason one is not a number."""
+    for x in (value, limit):
+        if isinstance(x, NotAvailable):
+            return x
+    return value >= limit
+
+
+def _tripod_checks(report):
+    """The verdict table's rows of the inboard tripod: its Hertz static capacity and its life."""
+    k_s = cell(_get(report, "spec", "loads", "shock_factor"))
+    c = _get(report, "constraints", "static_capacity")
+    M_s, limit = cell(c.get("value")), cell(c.get("limit"))
+    M_max = _quotient(limit, k_s)
+    margin = cell(c.get("margin"))
+    rows = [
+        [
+            "inboard tripod",
+            "Hertz static capacity M_s; safety M_s/M_max",
+            f"M_s/M_max ≥ k_s = {fmt(k_s)} (M_s ≥ {fmt(limit)} N·m)",
+            M_s,
+            "N·m",
+            _quotient(M_s, M_max),
+            _passes(margin if isinstance(margin, NotAvailable) else margin >= 0),
+        ]
+    ]
+    life = report.get("life")
+    if life is None:
+        km = required = NotAvailable(_ABSENT["life"])
+    else:
+        km, required = cell(life.get("km")), cell(life.get("required_km"))
+    rows.append(
+        [
+            "inboard tripod",
+            "life over the working conditions; damage L_req/L (Miner)",
+            f"≥ {fmt(required)} km",
+            km,
+            "km",
+            _quotient(required, km),
+            _passes(_at_least(km, required)),
+        ]
+    )
+    return rows
+
+
+def _halfshaft_checks(halfshaft):
+    """The verdict table's rows of the outboard joint and of each shaft section."""
+    o = _get(halfshaft, "outboard")
+    required = cell(o.get("required_km"))
+    km = cell(o.get("life_km"))
+    rows = [
+        [
+            "outboard joint",
+            "Hertz static capacity M_s; safety M_s/M_max",
+            f"M_s/M_max ≥ {fmt(cell(o.get('required_static_safety')))}",
+            cell(o.get("M_s_Nm")),
+            "N·m",
+            cell(o.get("static_safety")),
+            _passes(bool(o.get("static_passed"))),
+        ],
+        [
+            "outboard joint",
+            "life over the working conditions; damage L_req/L (Miner)",
+            f"≥ {fmt(required)} km",
+            km,
+            "km",
+            _quotient(required, km),
+            _passes(bool(o.get("life_passed"))),
+        ],
+    ]
+    for s in _get(halfshaft, "sections"):
+        part = (
+            f"{s['name']} (Øe {fmt(cell(s.get('outer_diameter_mm')))}, "
+            f"h {fmt(cell(s.get('hardened_depth_mm')))} mm)"
+        )
+        safety, damage = cell(s.get("static_safety")), cell(s.get("damage"))
+        rows.append(
+            [
+                part,
+                "static safety τ_adm/τ, through the hardened layer",
+                f"≥ {fmt(cell(s.get('required_static_safety')))}",
+                safety,
+                "–",
+                safety,
+                _passes(bool(s.get("static_passed"))),
+            ]
+        )
+        rows.append(
+            [
+                part,
+                "fatigue damage (Goodman, semi-log S–N, Miner)",
+                f"< {fmt(cell(s.get('allowed_damage')))}",
+                damage,
+                "–",
+                damage,
+                _passes(bool(s.get("fatigue_passed"))),
+            ]
+        )
+    return rows
+
+
+def _validation(report):
+    """The verdict table of the validation document: each joint's and section's requirement,
+    computed value, safety or damage and verdict."""
+    columns = [
+        Column("part", kind="text"),
+        Column("check", kind="text"),
+        Column("requirement", kind="text"),
+        Column("computed value"),
+        Column("unit", kind="text"),
+        Column("safety or damage", "–"),
+        Column("verdict", kind="verdict"),
+    ]
+    rows = _tripod_checks(report)
+    halfshaft = report.get("halfshaft")
+    notes = []
+    if halfshaft is None:
+        notes.append(
+            f"The outboard joint and the shaft sections are not checked: {_ABSENT['halfshaft']}."
+        )
+    else:
+        rows += _halfshaft_checks(halfshaft)
+        torque = _get(halfshaft, "static_torque_Nm")
+        notes.append(
+            f"Static checks at M_max {fmt(cell(torque.get('forward')))} N·m forward and "
+            f"{fmt(cell(torque.get('backward')))} N·m backward, the largest working torques with "
+            "the shock factor k_s; fatigue and life over the required mileage."
+        )
+    failed = [f"{r[0]}: {r[1].split(';')[0]}" for r in rows if r[6] != "passes"]
+    if failed:
+        verdict = (
+            f"Not validated: {'; '.join(failed)} {'does' if len(failed) == 1 else 'do'} not pass."
+        )
+    elif halfshaft is None:
+        verdict = "Not validated: the inboard tripod passes; the outboard joint and the shaft sections are not checked."
+    else:
+        verdict = "Every check passes."
+    return Table(
+        "validation", "Validation: requirements and verdicts", columns, rows, [verdict, *notes]
+    )
 
 
 def _damage(report):
@@ -779,6 +944,7 @@ def _history(report):
     return Table("convergence", "Convergence history (chosen start)", columns, rows)
 
 
+_VALIDATION = ("validation", "Validation: requirements and verdicts", _validation)
 SECTIONS = (
     ("summary", "Summary", _summary),
     ("requirements", "Requirements", _requirements),
@@ -789,6 +955,7 @@ SECTIONS = (
     ("halfshaft", "The rest of the halfshaft", _halfshaft),
     ("outboard_life", "Outboard joint: life per working condition", _outboard_life),
     ("shaft_damage", "Shaft sections: damage by gear", _shaft_damage),
+    _VALIDATION,
     ("reliability", "Reliability", _reliability),
     ("sensitivities", "Sensitivities", _sensitivities),
     ("switch", "Near-switch notes", _switch),
@@ -798,11 +965,198 @@ SECTIONS = (
 )
 
 
-def tables(report) -> dict:
-    """The report's tables ``{name: Table}``, in reading order; a table it cannot give says why."""
+# ---------------------------------------------------------------------------------------------
+# the validation document (validation.html): the customer's inputs and the readings beside the
+# verdict table (SECTIONS' "validation")
+
+# The customer's inputs: (path in the resolved spec, what it is, unit).
+_VEHICLE_INPUTS = (
+    (("vehicle", "axle"), "axle of the halfshaft", ""),
+    (("vehicle", "mass_kg"), "gross vehicle mass", "kg"),
+    (("vehicle", "front_share"), "share of the mass on the front axle", "–"),
+    (("vehicle", "wheelbase_m"), "wheelbase", "m"),
+    (("vehicle", "cg_height_m"), "centre-of-gravity height", "m"),
+    (("vehicle", "tyre_radius_m"), "static loaded tyre radius", "m"),
+    (("vehicle", "adhesion"), "tyre–road adhesion coefficient", "–"),
+    (("vehicle", "rear_torque_share"), "share of the engine torque to the rear axle", "–"),
+    (("vehicle", "differential_locking"), "differential locking", "–"),
+    (
+        ("vehicle", "engine_torque_Nm"),
+        "engine torque at mean torque, maximum torque, maximum power, engine brake",
+        "N·m",
+    ),
+    (("vehicle", "engine_speed_rpm"), "engine speed at the same conditions", "rpm"),
+    (("vehicle", "gears", "ratios"), "overall ratios (gear × final drive), 1st gear first", "–"),
+    (("vehicle", "gears", "reverse"), "overall ratio in reverse", "–"),
+)
+_USE_INPUTS = (
+    (("loads", "M_max"), "largest forward torque on the shaft, as given", "N·m"),
+    (("loads", "shock_factor"), "shock factor k_s", "–"),
+    (("life", "required_km"), "required mileage", "km"),
+)
+
+
+def _listed(value):
+    return ", ".join(fmt(cell(v)) for v in value) if isinstance(value, list) else cell(value)
+
+
+def _shares(names, shares):
+    return ", ".join(f"{n} {fmt(cell(100 * w), 3)} %" for n, w in zip(names, shares, strict=True))
+
+
+def _conditions_text(conditions):
+    return ", ".join(
+        f"{n} {fmt(cell(a), 3)}° {fmt(cell(100 * w), 3)} %"
+        for n, a, w in zip(
+            conditions["names"], conditions["angle_deg"], conditions["share"], strict=True
+        )
+    )
+
+
+def _inputs(report):
+    spec = _get(report, "spec")
+    columns = [Column("input", kind="text"), Column("value"), Column("unit", kind="text")]
+    from tripodjax.optimize.spec import LIFE_LISTS
+
+    rows = []
+    notes = []
+    life = _get(spec, "life")
+    explicit = [k for k in (*LIFE_LISTS, "spectrum_file") if k in life]
+    # The resolved spec keeps the default [vehicle]; it is used unless M_max and the spectrum
+    # are both given (optimize.spec).
+    if "vehicle" in spec and ("M_max" not in _get(spec, "loads") or not explicit):
+        for path, name, unit in _VEHICLE_INPUTS:
+            rows.append([name, _listed(_get(spec, *path)), unit])
+        modes = _get(spec, "vehicle", "modes")
+        rows.append(
+            [
+                "use: driving modes, share of the mileage",
+                _shares(modes["names"], modes["weight"]),
+                "",
+            ]
+        )
+    else:
+        notes.append(
+            "No vehicle is used: the spec gives the largest torque (loads.M_max) and the load "
+            "spectrum directly."
+        )
+    for path, name, unit in _USE_INPUTS:
+        if path[-1] in spec.get(path[0], {}):
+            rows.append([name, cell(_get(spec, *path)), unit])
+    for key in explicit:
+        unit = "" if key == "spectrum_file" else spec_unit(f"life.{key}")
+        rows.append([f"load spectrum: life.{key}", _listed(life[key]), unit])
+    rows.append(
+        [
+            "working conditions of the inboard tripod: angle, share of the mileage",
+            _conditions_text(_get(spec, "life", "conditions")),
+            "",
+        ]
+    )
+    if report.get("halfshaft") is not None:
+        rows.append(
+            [
+                "working conditions of the outboard joint: angle, share of the mileage",
+                _conditions_text(_get(spec, "outboard", "conditions")),
+                "",
+            ]
+        )
+    return Table("inputs", "The customer's inputs", columns, rows, notes)
+
+
+# Where the workbook is silent: (spec key, what it concerns, {reading: what it means}).
+READINGS = (
+    (
+        ("shaft", "reading"),
+        "shaft sections in fatigue",
+        {
+            "consistent": "the 1st gear's engine-brake cycles counted with the event rate p(ω) "
+            "like every other row; the strength at the end of the hardened layer r_TR is the "
+            "strength profile's there (the core's σ_R,c)",
+            "workbook": "the sheet's numbers: the 1st gear's engine-brake cycles counted as "
+            "revolutions without p(ω); the strength at r_TR taken as σ_R,c (1 + Δ) (759 MPa "
+            "for a 690 MPa core)",
+        },
+    ),
+    (
+        ("outboard", "reading"),
+        "outboard joint's Hertz coefficient μν",
+        {
+            "consistent": "μν from exact Hertz theory (elliptic integrals)",
+            "workbook": "μν from the sheet's table at cos τ truncated to 10⁻³ (reproduces the "
+            "sheet's M_s, M_d, M_sd within 0.3 %; the exact μν gives 3.8 % more)",
+        },
+    ),
+    (
+        ("life", "angle_law"),
+        "life against the working angle (both joints)",
+        {
+            "workbook": "g(γ) = exp(−(aγ + bγ²)), fitted through the workbook's two readable "
+            "points (6.5° and 12.8°, fig. 4.3.10): the sheet's macro is not printed",
+            "seed": "the seed's printed factor ½(1 + cos γ) in M_d, g(γ) = (½(1 + cos γ))³",
+        },
+    ),
+)
+
+
+def _readings(report):
+    spec = _get(report, "spec")
+    columns = [
+        Column("item", kind="text"),
+        Column("reading chosen", kind="text"),
+        Column("what it means", kind="text"),
+        Column("the other reading", kind="text"),
+    ]
+    rows = []
+    for path, item, meanings in READINGS:
+        chosen = _get(spec, *path)
+        others = "; ".join(f"{k}: {v}" for k, v in meanings.items() if k != chosen)
+        rows.append(
+            [item, chosen, meanings.get(chosen, f"{chosen!r} is not a known reading"), others]
+        )
+    return Table(
+        "readings",
+        "Readings where the workbook is silent",
+        columns,
+        rows,
+        notes=["Spec keys: " + ", ".join(".".join(p) for p, _, _ in READINGS) + "."],
+    )
+
+
+def table_dict(table) -> dict:
+    """A table as strict JSON: column labels, rows (a cell that is not available as its text),
+    notes, and the reason when the whole table is not available (else null)."""
+    return {
+        "title": table.title,
+        "columns": [c.label for c in table.columns],
+        "rows": [[fmt(v) if isinstance(v, NotAvailable) else v for v in r] for r in table.rows],
+        "notes": list(table.notes),
+        "unavailable": table.unavailable,
+    }
+
+
+# The validation document's tables: the customer's inputs, the verdict table (the report's
+# "validation" table, as in report.json and report.xlsx) and the readings where the sheet is silent.
+VALIDATION_SECTIONS = (
+    ("inputs", "The customer's inputs", _inputs),
+    _VALIDATION,
+    ("readings", "Readings where the workbook is silent", _readings),
+)
+
+
+def validation_section(report) -> dict:
+    """The report's ``validation`` section (report.json): the verdict table as `table_dict`,
+    the table validation.html, report.html and report.xlsx show."""
+    return table_dict(tables(report, (_VALIDATION,))["validation"])
+
+
+def tables(report, sections=SECTIONS) -> dict:
+    """The report's tables ``{name: Table}``, in reading order; a table it cannot give says why.
+    ``sections``: `SECTIONS` (report.html, report.xlsx) or `VALIDATION_SECTIONS`
+    (validation.html)."""
     if not isinstance(report, dict):
         report = {}
-    return {name: _section(title, name, build, report) for name, title, build in SECTIONS}
+    return {name: _section(title, name, build, report) for name, title, build in sections}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -871,10 +1225,31 @@ FIGURES = {  # the figure beside each table, by the name the CLI gives it
     "damage": ("damage.png", "Damage shares"),
     "reliability": ("importance.png", "Importance factors"),
     "sensitivities": ("sensitivities.png", "Tornado chart of the largest elasticities"),
+    "life": ("life_conditions.png", "Life per working condition of each joint"),
+    "shaft_damage": ("shaft_damage.png", "Fatigue damage of the shaft sections by gear"),
     "catalogue": ("catalogue.png", "Catalogue sizes over the constraint landscape"),
     "pareto_front": ("pareto_front.png", "Pareto front: GAF against joint size"),
     "convergence": ("convergence.png", "Convergence of the chosen start"),
 }
+
+
+# The validation document's figures: {place: (file name, caption)}.
+VALIDATION_FIGURES = {
+    "life": ("life_conditions.png", "Life per working condition of each joint"),
+    "damage": ("shaft_damage.png", "Fatigue damage of the shaft sections by gear"),
+}
+
+
+def _images(figures, wanted):
+    """``{place: (data URI or NotAvailable, caption)}`` of the ``wanted`` figures that are drawn."""
+    images = {}
+    for place, (name, caption) in wanted.items():
+        if name in figures:
+            try:
+                images[place] = (image_uri(figures[name]), caption)
+            except (ValueError, RuntimeError, OverflowError) as error:  # a figure of bad numbers
+                images[place] = (NotAvailable(f"the figure could not be drawn: {error}"), caption)
+    return images
 
 
 @functools.cache
@@ -924,13 +1299,7 @@ def render_html(report, figures=None) -> str:
     """
     figures = figures or {}
     safe = report if isinstance(report, dict) else {}
-    images = {}
-    for table, (name, caption) in FIGURES.items():
-        if name in figures:
-            try:
-                images[table] = (image_uri(figures[name]), caption)
-            except (ValueError, RuntimeError, OverflowError) as error:  # a figure of bad numbers
-                images[table] = (NotAvailable(f"the figure could not be drawn: {error}"), caption)
+    images = _images(figures, FIGURES)
     try:
         toml = spec_toml(_get(safe, "spec"))
     except (NotAvailable, AttributeError) as reason:
@@ -953,6 +1322,45 @@ def render_html(report, figures=None) -> str:
     )
 
 
+def render_validation(report, figures=None) -> str:
+    """The validation document the customer signs off (validation.html): the inputs, the method,
+    each joint's and shaft section's requirement, value and verdict, the life per working
+    condition and the damage by gear, the readings chosen, the revision and approval block.
+
+    ``figures``: as for `render_html` (`VALIDATION_FIGURES` are shown).
+    """
+    safe = report if isinstance(report, dict) else {}
+    written = safe.get("written") or {}
+    versions = safe.get("versions") or {}
+    design = safe.get("design") if isinstance(safe.get("design"), dict) else {}
+    spec = safe.get("spec") if isinstance(safe.get("spec"), dict) else {}
+    return (
+        _environment()
+        .get_template("validation.html.j2")
+        .render(
+            title="Halfshaft validation",
+            source=safe.get("spec_source", "spec not named"),
+            tables=tables(report, VALIDATION_SECTIONS),
+            images=_images(figures or {}, VALIDATION_FIGURES),
+            version_note=version_note(report),
+            versions={
+                name: versions.get(name, NotAvailable("not recorded"))
+                for name in ("tripodjax", "jax")
+            },
+            date=written.get("date", NotAvailable("not recorded")),
+            revision=written.get("revision", "0"),
+            R=cell(design.get("R_mm")),
+            d=cell(design.get("d_roller_mm")),
+            status=status_words(safe),
+            shock_factor=cell((spec.get("loads") or {}).get("shock_factor")),
+            halfshaft_absent=None
+            if isinstance(safe.get("halfshaft"), dict)
+            else _ABSENT["halfshaft"],
+            life_absent=None if isinstance(safe.get("life"), dict) else _ABSENT["life"],
+        )
+    )
+
+
 # ---------------------------------------------------------------------------------------------
 # the workbook
 
@@ -965,7 +1373,7 @@ def prepare():
     import matplotlib.figure  # noqa: F401
 
     env = _environment()
-    for name in ("report.html.j2", "compare.html.j2"):
+    for name in ("report.html.j2", "validation.html.j2", "compare.html.j2"):
         env.get_template(name)
     xlsx_missing()
 
@@ -1014,29 +1422,36 @@ def write_xlsx(report, path):
 # writing
 
 
-def written_info(command=None):
-    """The date (UTC) and the command line (default: this process's), for the colophon."""
+def written_info(command=None, revision="0"):
+    """The date (UTC), the command line (default: this process's) and the validation
+    document's revision (``optimize-joint --revision``), for the colophon."""
     if command is None:
         command = [os.path.basename(sys.argv[0]) or "python", *sys.argv[1:]]
     return {
         "date": datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC"),
         "command": shlex.join(command),
+        "revision": revision,
     }
 
 
 def documents(report, figures, formats=FORMATS):
-    """``({file name: writer(path)}, messages)`` for the html and xlsx among ``formats``."""
+    """``({file name: writer(path)}, messages)`` for the html (report.html and validation.html)
+    and xlsx among ``formats``."""
     unknown = set(formats) - set(FORMATS)
     if unknown:
         raise ValueError(f"formats {sorted(unknown)} unknown; allowed: {', '.join(FORMATS)}")
     writers, messages = {}, []
-    if "html" in formats:
+    if "html" in formats:  # the design report and the customer's validation document
 
-        def html(path, pngs):
-            with open(path, "w", encoding="utf-8") as f:
-                f.write(render_html(report, {**figures, **pngs}))
+        def page(render):
+            def write(path, pngs):
+                with open(path, "w", encoding="utf-8") as f:
+                    f.write(render(report, {**figures, **pngs}))
 
-        writers["report.html"] = html
+            return write
+
+        writers["report.html"] = page(render_html)
+        writers["validation.html"] = page(render_validation)
     if "xlsx" in formats:
         missing = xlsx_missing()
         if missing:

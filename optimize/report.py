@@ -233,6 +233,9 @@ def report_dict(
     report = strict(report, notes=notes)
     if notes:
         report["nonfinite_notes"] = notes
+    from tripodjax.optimize.document import validation_section
+
+    report["validation"] = validation_section(report)  # the verdict table, as on the pages
     return report
 
 
@@ -512,6 +515,77 @@ def figure_damage(life):
     )
     for ax in (ax0, ax1):
         ax.grid(alpha=0.3, axis="y")
+    return fig
+
+
+def figure_life_conditions(life=None, halfshaft=None):
+    """The life of each joint per working condition [km], with its combined life and the
+    required mileage: the inboard tripod's (``life``, of
+    [`life_report`][tripodjax.optimize.life_report]) and the outboard joint's (``halfshaft``, of
+    [`halfshaft_report`][tripodjax.optimize.halfshaft_report]), whichever is given."""
+    joints = []
+    if life is not None:
+        joints.append(("inboard tripod", life["conditions"], life["km"], life["required_km"]))
+    if halfshaft is not None:
+        o = halfshaft["outboard"]
+        joints.append(("outboard joint", o["conditions"], o["life_km"], o["required_km"]))
+    if not joints:
+        raise ValueError("figure_life_conditions needs the tripod's life or the halfshaft's")
+    fig = _figure(figsize=(11, 4))
+    axes = np.atleast_1d(fig.subplots(1, len(joints), sharey=True))
+    for ax, (name, conditions, km, required) in zip(axes, joints, strict=True):
+        ax.bar(range(len(conditions)), [c["life_km"] for c in conditions], color="C0")
+        ax.set_xticks(
+            range(len(conditions)),
+            [
+                f"{label(c['name'], 16)}\n{c['angle_deg']:.1f}°, {100 * c['share']:.0f} %"
+                for c in conditions
+            ],
+            fontsize=8,
+        )
+        ax.axhline(km, color="C2", lw=1.5)
+        ax.axhline(required, color="C3", lw=1.2, ls="--")
+        ax.set_title(f"{name}\n{km:,.0f} km combined, {required:,.0f} km required", fontsize=10)
+        ax.set(xlabel="working condition: angle, share of the mileage")
+        ax.grid(alpha=0.3, axis="y")
+    axes[0].set(ylabel="life [km]")
+    from matplotlib.lines import Line2D
+
+    handles = [
+        Line2D([], [], color="C2", lw=1.5, label="combined life (Miner's rule over the shares)"),
+        Line2D([], [], color="C3", lw=1.2, ls="--", label="required mileage"),
+    ]
+    fig.legend(handles=handles, fontsize=8, loc="outside lower center", ncol=2)
+    return fig
+
+
+def figure_shaft_damage(halfshaft):
+    """Each shaft section's fatigue damage (Miner's sum over the required mileage) by gear, at
+    its critical radius (``halfshaft``: of [`halfshaft_report`][tripodjax.optimize.halfshaft_report])."""
+    sections = halfshaft["sections"]
+    gears = [g["gear"] for g in sections[0]["damage_by_gear"]]
+    fig = _figure(figsize=(11, 4))
+    ax = fig.subplots()
+    width = 0.8 / len(sections)
+    for k, s in enumerate(sections):
+        x = np.arange(len(gears)) + (k - (len(sections) - 1) / 2) * width
+        damage = [g["damage"] for g in s["damage_by_gear"]]
+        ax.bar(
+            x,
+            damage,
+            width,
+            color=f"C{k % 10}",
+            label=f"{label(s['name'], 20)} (Σ {s['damage']:.3g})",
+        )
+    ax.set_xticks(range(len(gears)), [label(g, 8) for g in gears])
+    ax.set(
+        title="shaft sections: fatigue damage by gear (Miner's sum over the required mileage; "
+        f"allowed total < {sections[0]['allowed_damage']:g})",
+        xlabel="gear",
+        ylabel="damage [–]",
+    )
+    fig.legend(fontsize=8, loc="outside lower center", ncol=min(len(sections), 5))
+    ax.grid(alpha=0.3, axis="y")
     return fig
 
 

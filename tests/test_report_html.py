@@ -118,7 +118,7 @@ def with_sections(body):
 
 def test_cli_writes_a_self_contained_html_and_a_workbook_beside_the_json(run):
     out, body = run
-    assert {"report.json", "report.html", "report.xlsx"} <= set(os.listdir(out))
+    assert {"report.json", "report.html", "validation.html", "report.xlsx"} <= set(os.listdir(out))
     assert not [n for n in os.listdir(out) if n.startswith(".")]  # nothing staged is left
     html = (out / "report.html").read_text(encoding="utf-8")
     assert "<script" not in html.lower()
@@ -443,10 +443,10 @@ def test_without_openpyxl_one_line_names_the_extra_and_the_rest_is_written(
     _, body = run
     monkeypatch.setitem(sys.modules, "openpyxl", None)  # import openpyxl raises ImportError
     writers, messages = document.documents(body, {})
-    assert set(writers) == {"report.html"}
+    assert set(writers) == {"report.html", "validation.html"}
     assert len(messages) == 1 and "\n" not in messages[0] and "tripodjax[report]" in messages[0]
     report.write(tmp_path, body, {}, writers)
-    assert sorted(os.listdir(tmp_path)) == ["report.html", "report.json"]
+    assert sorted(os.listdir(tmp_path)) == ["report.html", "report.json", "validation.html"]
 
 
 def test_bad_input_renders_not_available_with_its_reason(run):
@@ -598,6 +598,9 @@ def test_figures_keep_every_label_inside_and_apart(run):
         "catalogue": report.figure_catalogue(result, body["catalogue"], body["catalogue_choice"]),
         "damage": report.figure_damage(body["life"]),
         "importance": report.figure_importance(RELIABILITY),
+        "life_conditions": report.figure_life_conditions(body["life"], body["halfshaft"]),
+        "life_conditions of the tripod": report.figure_life_conditions(body["life"]),
+        "shaft_damage": report.figure_shaft_damage(body["halfshaft"]),
     }
     for name, fig in figures.items():
         try:
@@ -694,3 +697,145 @@ def test_the_browser_starts_without_forking_this_process(tmp_path):
         browser.open(page.as_uri())
         assert browser.evaluate("document.body.innerText") == "tripodjax"
     assert forks == []
+
+
+# --------------------------------------------------------------------------- validation.html
+
+
+def expected_verdicts(body):
+    """Each check's verdict from the report's own numbers and flags, in the table's order."""
+    words = {True: "passes", False: "fails"}
+    life = body["life"]
+    verdicts = [
+        words[body["constraints"]["static_capacity"]["margin"] >= 0],
+        words[life["km"] >= life["required_km"]],
+    ]
+    if "halfshaft" in body:
+        outboard = body["halfshaft"]["outboard"]
+        verdicts += [words[outboard["static_passed"]], words[outboard["life_passed"]]]
+        for s in body["halfshaft"]["sections"]:
+            verdicts += [words[s["static_passed"]], words[s["fatigue_passed"]]]
+    return verdicts
+
+
+def without_halfshaft(body):
+    body = {k: copy.deepcopy(v) for k, v in body.items() if k != "halfshaft"}
+    body["validation"] = document.validation_section(body)
+    return body
+
+
+def pdf_pages(pdf):
+    """The number of pages of a PDF: its page objects (``/Type /Page``, not ``/Pages``)."""
+    return len(re.findall(rb"/Type\s*/Page(?![a-zA-Z])", pdf))
+
+
+def test_the_verdict_table_is_the_same_in_json_xlsx_and_html(run):
+    out, body = run
+    rows = body["validation"]["rows"]
+    # report.json's section is the table the pages show, recomputed from the rest of the report.
+    assert body["validation"] == document.validation_section(
+        {k: v for k, v in body.items() if k != "validation"}
+    )
+    assert [r[-1] for r in rows] == expected_verdicts(body)
+    assert len(rows) == 4 + 2 * len(body["halfshaft"]["sections"])
+    sheet = read_sheets(out / "report.xlsx")["validation"]
+    assert [list(r) for r in sheet] == [body["validation"]["columns"]] * len(rows)
+    for r, j in zip(sheet, rows, strict=True):
+        assert same(list(r.values()), j)
+    html = (out / "report.html").read_text(encoding="utf-8")
+    assert 'data-table="validation"' in html  # the engineer's report shows it too
+    assert body["validation"]["notes"][0] == "Every check passes."  # the default halfshaft
+
+
+def test_a_failing_check_is_named_in_the_verdict(run):
+    _, body = run
+    failing = copy.deepcopy(body)
+    failing["halfshaft"]["sections"][0]["fatigue_passed"] = False
+    failing["life"]["km"] = 0.5 * failing["life"]["required_km"]
+    table = document.tables(failing, document.VALIDATION_SECTIONS)["validation"]
+    assert [r[-1] for r in table.rows] == expected_verdicts(failing)
+    assert table.rows[1][5] == pytest.approx(2.0)  # damage over the required mileage L_req/L
+    name = failing["halfshaft"]["sections"][0]["name"]
+    assert table.notes[0].startswith("Not validated: inboard tripod: life over the working")
+    assert f"{name} (Øe" in table.notes[0] and "fatigue damage" in table.notes[0]
+    page = document.render_validation(failing)
+    assert 'class="verdict fail"' in page and "Every check passes." not in page
+
+
+def test_the_validation_document_says_why_a_part_is_missing(run):
+    _, body = run
+    absent = without_halfshaft(body)
+    table = document.tables(absent, document.VALIDATION_SECTIONS)["validation"]
+    assert [r[0] for r in table.rows] == ["inboard tripod", "inboard tripod"]
+    assert "the report has no halfshaft section" in table.notes[1]
+    page = document.render_validation(absent)
+    assert "shaft sections are not checked: the report has no halfshaft section" in page
+    assert table.notes[0].startswith("Not validated: the inboard tripod passes;")
+    assert "Figure not available: the report has no halfshaft section" in page
+    assert "Rev. 0" in page  # written before revisions were recorded: the first
+    revised = dict(body, written=dict(body["written"], revision="B"))
+    assert '<td id="revision">Rev. B</td>' in document.render_validation(revised)
+    for broken in (None, [], {}, {"spec": 3, "versions": None}):
+        assert "Not available:" in document.render_validation(broken)
+
+
+@needs_chromium
+def test_validation_prints_on_at_most_4_a4_pages_with_the_reports_verdicts(run, tmp_path):
+    out, body = run
+    html = (out / "validation.html").read_text(encoding="utf-8")
+    assert "<script" not in html.lower() and "@page { size: A4" in html
+    assert '<td id="revision">Rev. 0</td>' in html  # the command's default revision
+    references = re.findall(r"""(?:src|href)\s*=\s*["']([^"']*)""", html)
+    assert len(references) == 2 and all(r.startswith("data:image/png") for r in references)
+    # The same document without the halfshaft's checks (a spec without [vehicle]).
+    absent = tmp_path / "absent.html"
+    figures = {"life_conditions.png": report.figure_life_conditions(body["life"])}
+    absent.write_text(document.render_validation(without_halfshaft(body), figures), "utf-8")
+    EXAMPLE.mkdir(parents=True, exist_ok=True)
+    for page_path, expected, pdf_path in (
+        (out / "validation.html", body, EXAMPLE / "validation.pdf"),
+        (absent, without_halfshaft(body), tmp_path / "absent.pdf"),
+    ):
+        with Page(CHROMIUM) as page:
+            page.open(page_path.as_uri())
+            assert page.console_errors() == []
+            assert [u for u in page.requests() if not u.startswith(("file:", "data:"))] == []
+            cells = page.evaluate(
+                """[...document.querySelectorAll('table[data-table="validation"] tbody tr')]
+                   .map(tr => [...tr.cells].map(td => td.dataset.value ?? td.textContent.trim()))"""
+            )
+            overall = page.evaluate("document.querySelector('p.verdict').textContent.trim()")
+            images = page.evaluate(
+                "[...document.images].map(i => i.complete && i.naturalWidth > 0)"
+            )
+            page.pdf(pdf_path)
+            page.send("Emulation.setEmulatedMedia", session=True, media="print")
+            page.send(
+                "Emulation.setDeviceMetricsOverride",
+                session=True,
+                width=round(182 / 25.4 * 96),  # A4 within the document's 14 mm margins
+                height=1000,
+                deviceScaleFactor=1,
+                mobile=False,
+            )
+            overflow = page.evaluate(
+                """[...document.querySelectorAll("table, img, p, li")].filter(e =>
+                   e.getBoundingClientRect().right > document.documentElement.clientWidth + 1)
+                   .map(e => e.dataset.table || e.alt || e.textContent.slice(0, 40))"""
+            )
+        assert overflow == []
+        assert images and all(images)
+        rows = expected["validation"]["rows"]
+        assert [r[-1] for r in cells] == [r[-1] for r in rows] == expected_verdicts(expected)
+        for shown, row in zip(cells, rows, strict=True):  # every cell, numbers to the last digit
+            assert [
+                float(c) if isinstance(v, float) else c for c, v in zip(shown, row, strict=True)
+            ] == row
+        assert overall == expected["validation"]["notes"][0]
+        pdf = pdf_path.read_bytes()
+        assert pdf[:5] == b"%PDF-" and 1 <= pdf_pages(pdf) <= 4, pdf_pages(pdf)
+        boxes = {
+            tuple(map(float, b.split())) for b in re.findall(rb"/MediaBox\s*\[([^\]]*)\]", pdf)
+        }
+        assert len(boxes) == 1 and next(iter(boxes)) == pytest.approx((0, 0, 595.3, 841.9), abs=1.5)
+    (EXAMPLE / "validation.html").write_bytes(html.encode("utf-8"))
