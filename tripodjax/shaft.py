@@ -78,6 +78,7 @@ boundary (one line naming the field, the value and the allowed range);
 inside ``jit`` an input outside its domain gives NaN, never a plausible number.
 """
 
+import functools
 import math
 from collections.abc import Mapping
 from types import MappingProxyType
@@ -479,7 +480,7 @@ def fatigue_cycles(
     return _fatigue_cycles(cycles, modes, event_rate, reading == "workbook")
 
 
-@jax.jit(static_argnums=3)
+@functools.partial(jax.jit, static_argnums=3)
 def _fatigue_cycles(cycles, modes, event_rate, workbook):
     use = jnp.asarray(modes.use)
     weight = jnp.asarray(modes.weight)
@@ -572,7 +573,7 @@ def fatigue_check(
     return _fatigue_check(s, m, rows, reading == "workbook")
 
 
-@jax.jit(static_argnums=3)
+@functools.partial(jax.jit, static_argnums=3)
 def _fatigue_check(s, m, rows, workbook):
     r_o = jnp.asarray(s.outer_diameter) / 2.0
     r_tr = r_o - s.hardened_depth - s.transition_depth
