@@ -6,6 +6,7 @@ brentq on the margins computed by tripodjax.shaft directly, on the vehicle built
 against central differences of tripodjax.shaft through the same load cycles.
 """
 
+import dataclasses
 import math
 
 import jax
@@ -234,3 +235,31 @@ def test_a_design_outside_a_sections_domain_is_refused(spec):
         optimize.evaluate(
             spec, {"R": 26.0, "d_roller": 41.0, FREE: 20.0, "shaft.outer_diameter_mm[D-D]": 9.0}
         )
+
+
+def test_the_diameters_sensitivity_equals_differences_of_the_root(spec, by_hand):
+    """d Øe*/d σ_R,c by the KKT system of the solve against central differences of the brentq
+    root: the stem's binding static check is at the end of its layer, in the core."""
+    rows, torque = by_hand
+    result = optimize.solve(spec, progress=False, sensitivities=True)
+    derivatives = result.sensitivities["derivatives"]
+    section, material = stem(20.0)
+
+    def root(core):
+        steel = dataclasses.replace(material, core_uts=core)
+
+        def margin(d):
+            layer = shaft.Section(d, section.hardened_depth, section.transition_depth)
+            return math.log(float(jnp.min(shaft.static_check(layer, steel, torque).safety)))
+
+        return smallest(margin)
+
+    with jax.enable_x64(True):
+        h = 1e-3 * 690.0
+        central = (root(690.0 + h) - root(690.0 - h)) / (2 * h)
+    # the KKT system takes its Hessian by differences of exact gradients: ~1e-5 relative
+    assert derivatives["shaft.core_uts_MPa"][FREE] == pytest.approx(central, rel=1e-4)
+    # the free entry's own spec value is not an input; the other sections' diameters are
+    index = spec.structure.shaft_sections.index(STEM)
+    assert f"shaft.outer_diameter_mm[{index}]" not in derivatives
+    assert derivatives["shaft.outer_diameter_mm[2]"][FREE] == 0.0
