@@ -355,8 +355,9 @@ def _compute(args, given, command_line):
     except ValueError:  # a design outside the domain (a failed solve): no life, no forces
         life = forces = None
     try:
-        halfshaft = structural.halfshaft_report(spec)
-    except ValueError:  # no [vehicle]: the report's halfshaft section says why it is absent
+        halfshaft = structural.halfshaft_report(spec, result.design)
+    except ValueError:  # no [vehicle] (the report's halfshaft section says why it is absent) or
+        # a design outside the domain (a failed solve)
         halfshaft = None
     if life is not None or halfshaft is not None:
         figures["life_conditions.png"] = report.figure_life_conditions(life, halfshaft)

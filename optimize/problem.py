@@ -1,8 +1,8 @@
 """The joint-design problem: design variables → quantities, objective and constraint margins.
 
 The design vector holds the free variables of the spec (any of R, d_roller,
-l, γ0, conformity, λ, μ_slp; internal units: mm, rad, –); the others stay at
-their spec values. For each design the halfshaft is solved over a revolution
+l, γ0, conformity, λ, μ_slp, and [shaft] entries such as ``shaft.outer_diameter_mm[C-C]``;
+internal units: mm, rad, –); the others stay at their spec values. For each design the halfshaft is solved over a revolution
 (seed §2.9, implicit derivatives), the Hertz capacities and life come from
 §4.2 and the GAF from §3.2, but only the quantities the objective and the
 constraints use are computed. Everything is differentiable in the design and
@@ -14,6 +14,10 @@ Constraint margins, ≥ 0 when satisfied, as logarithmic ratios (0.01 = 1 % to s
 
     static_capacity   ln(M_s / (shock_factor · M_max))        (always)
     life              ln(L_km / required_km)                   (always)
+    shaft_static[s]   ln(S_s), S_s the static safety of [shaft] section s       (with a vehicle)
+    shaft_fatigue[s]  ln(allowed_damage / D_s), D_s its damage (the larger radius's)  (")
+    outboard_static   ln(M_s,outboard / (shock_factor · M_max))                 (")
+    outboard_life     ln(L_km,outboard / required_km)                           (")
     max_<q>           ln(limit / q)
     min_<q>           ln(q / limit)
 
@@ -47,17 +51,37 @@ from tripodjax.optimize.spec import (
     KINEMATIC_QUANTITIES,
     QUANTITIES,
     REVOLUTION_QUANTITIES,
+    SHAFT_VARIABLES,
     VARIABLES,
     Spec,
+    quantity_unit,
+    shaft_variable,
+    shaft_variable_name,
+    variable_domain,
 )
 from tripodjax.results import RESULTS, worst
 
 MARGIN_FLOOR = 1e-12  # q is floored at this fraction of its limit inside ln(limit/q)
 
 
+def halfshaft_constraint_names(structure):
+    """The rest of the halfshaft's requirements (with a vehicle): each [shaft] section's static
+    and fatigue checks, then the outboard joint's static safety and life."""
+    if not structure.halfshaft:
+        return ()
+    sections = tuple(
+        f"shaft_{check}[{name}]"
+        for name in structure.shaft_sections
+        for check in ("static", "fatigue")
+    )
+    return sections + ("outboard_static", "outboard_life")
+
+
 def constraint_names(structure):
-    """The constraints in margin order: the two Hertz requirements, then the spec's."""
-    names = ("static_capacity", "life") + tuple(name for name, _, _ in structure.constraints)
+    """The constraints in margin order: the two Hertz requirements, the rest of the halfshaft's,
+    then the spec's."""
+    names = ("static_capacity", "life") + halfshaft_constraint_names(structure)
+    names += tuple(name for name, _, _ in structure.constraints)
     return names + tuple(
         key if len(requirements) == 1 else f"{key}:{name}"
         for key, _, requirements in structure.chance
@@ -80,7 +104,7 @@ def bounds(structure, values, xp=jnp):
 def full_design(structure, values, x):
     """Every design variable (internal names and units) with the free ones taken from x."""
     design = {name: values[section][key] for name, (section, key, _, _) in VARIABLES.items()}
-    for i, name in enumerate(structure.free):
+    for i, name in enumerate(structure.free):  # a [shaft] entry only when free
         design[name] = x[..., i]
     return design
 
@@ -150,7 +174,15 @@ def quantities(structure, values, design):
     hertz_codes.append(life_result.result)
     q["outer_diameter"] = 2.0 * R + d
     q["R_over_d"] = R / d
-    q = {k: q[k] for k in QUANTITIES if k in q and k in needs}
+    sections = {}
+    if structure.halfshaft:
+        from tripodjax.optimize.structural import halfshaft_quantities
+
+        hq, sections, halfshaft_codes = halfshaft_quantities(structure, values, design)
+        q.update(hq)
+        codes.append(halfshaft_codes[0])
+        hertz_codes.append(halfshaft_codes[1])
+    q = {k: q[k] for k in QUANTITIES if k in q and k in needs} | sections
     finite = jnp.all(jnp.stack([jnp.isfinite(v) for v in q.values()]))
     codes.append(jnp.where(finite, RESULTS.successful, RESULTS.nonfinite))
     return q, jnp.stack([worst(*codes), worst(*hertz_codes)])
@@ -343,10 +375,17 @@ def chance_margins(structure, values, x):
 def requirement_margins(structure, values, q):
     """The deterministic margins (static capacity, life, the spec's constraints) from quantities."""
     loads = values["loads"]
+    required_km = values["life"]["required_km"]
     margins = [
         jnp.log(q["static_capacity"] / (loads["shock_factor"] * m_max(structure, values))),
-        jnp.log(q["life_km"] / values["life"]["required_km"]),
+        jnp.log(q["life_km"] / required_km),
     ]
+    if structure.halfshaft:
+        for name in structure.shaft_sections:
+            margins.append(jnp.log(q[f"shaft_static_safety[{name}]"]))
+            margins.append(jnp.log(values["shaft"]["allowed_damage"] / q[f"shaft_damage[{name}]"]))
+        margins.append(jnp.log(q["outboard_static_safety"] / loads["shock_factor"]))
+        margins.append(jnp.log(q["outboard_life_km"] / required_km))
     for name, k, sense in structure.constraints:
         limit = values["constraints"][name]
         value = jnp.maximum(q[k], MARGIN_FLOOR * limit)
@@ -369,12 +408,20 @@ def limits(structure, values):
         ),
         "life": ("life_km", float(values["life"]["required_km"]), "≥", "km"),
     }
+    if structure.halfshaft:
+        for name in structure.shaft_sections:
+            out[f"shaft_static[{name}]"] = (f"shaft_static_safety[{name}]", 1.0, "≥", "–")
+            allowed = float(values["shaft"]["allowed_damage"])
+            out[f"shaft_fatigue[{name}]"] = (f"shaft_damage[{name}]", allowed, "≤", "–")
+        shock = float(loads["shock_factor"])
+        out["outboard_static"] = ("outboard_static_safety", shock, "≥", "–")
+        out["outboard_life"] = ("outboard_life_km", out["life"][1], "≥", "km")
     for name, k, sense in structure.constraints:
         out[name] = (
             k,
             float(values["constraints"][name]),
             "≤" if sense == "max" else "≥",
-            QUANTITIES[k][0],
+            quantity_unit(k),
         )
     # A chance constraint: its requirement's quantity and limit (value: at the nominal design;
     # margin: at the inverse-FORM point).
@@ -385,11 +432,25 @@ def limits(structure, values):
 
 
 def fixed_design(values):
-    """Every design variable at its spec value, in spec units (γ0 in degrees)."""
+    """Every design variable of ``VARIABLES`` at its spec value, in spec units (γ0 in degrees)."""
     return {
         name: to_spec_units(name, values[section][key])
         for name, (section, key, _, _) in VARIABLES.items()
     }
+
+
+def spec_design(structure, values):
+    """The free variables at their spec values ([shaft] entries too), in spec units."""
+    fixed = fixed_design(values)
+    design = {}
+    for name in structure.free:
+        entry = shaft_variable(name)
+        if entry is None:
+            design[name] = fixed[name]
+        else:
+            key, section = entry
+            design[name] = float(values["shaft"][key][structure.shaft_sections.index(section)])
+    return design
 
 
 def to_spec_units(name, value):
@@ -421,7 +482,7 @@ def check_result(spec, result, name="result"):
 
     check_spec(spec)
     check_instance(name, result, Result, "the Result of tripodjax.optimize.solve(spec)")
-    free = tuple(k for k in VARIABLES if k in result.starts[0]["design"]) if result.starts else ()
+    free = tuple(result.starts[0]["design"]) if result.starts else ()
     names = constraint_names(spec.structure)
     if free != spec.structure.free or tuple(result.multipliers) != names:
         raise TypeError(
@@ -440,18 +501,24 @@ def check_design(structure, values, design):
             f"design = {design!r:.60} is not allowed; allowed: a mapping {{variable: value}} "
             f"(got a {type(design).__name__})"
         )
-    unknown = sorted(set(design) - set(VARIABLES))
+    shaft_entries = [
+        shaft_variable_name(k, n) for n in structure.shaft_sections for k in SHAFT_VARIABLES
+    ]
+    unknown = sorted(set(design) - set(VARIABLES) - set(shaft_entries))
     if unknown:
-        raise ValueError(f"design keys {unknown} not allowed; allowed: {', '.join(VARIABLES)}")
+        raise ValueError(
+            f"design keys {unknown} not allowed; allowed: {', '.join(VARIABLES)}, or a [shaft] "
+            f'entry "shaft.<list>[<section>]" ({shaft_entries[0] if shaft_entries else "none"}, …)'
+        )
     missing = [k for k in structure.free if k not in design]
     if missing:
         raise ValueError(
-            f"design lacks the free variables {missing} (spec units: {', '.join(f'{k} [{VARIABLES[k][2]}]' for k in missing)})"
+            f"design lacks the free variables {missing} (spec units: {', '.join(f'{k} [{variable_domain(k)[0]}]' for k in missing)})"
         )
     out = {}
     for key, value in design.items():
-        value = real_scalar(f"design[{key!r}]", value, f"a real number [{VARIABLES[key][2]}]")
-        low, high, low_open = VARIABLES[key][3]
+        unit, (low, high, low_open) = variable_domain(key)
+        value = real_scalar(f"design[{key!r}]", value, f"a real number [{unit}]")
         ok = math.isfinite(value) and (value > low if low_open else value >= low)
         ok = ok and (high is None or value <= high)
         if not ok:
@@ -459,9 +526,10 @@ def check_design(structure, values, design):
                 f" and ≤ {high:g}" if high is not None else ""
             )
             raise ValueError(
-                f"design[{key!r}] = {value!r} is outside the allowed range: a finite number {allowed} {VARIABLES[key][2]}"
+                f"design[{key!r}] = {value!r} is outside the allowed range: a finite number {allowed} {unit}"
             )
         out[key] = value
+    _check_shaft_sections(structure, values, out)
     check_layout_domain(  # the one layout-domain rule of the package
         R=out.get("R", float(values["design"]["R"])),
         l=out.get("l", float(values["layout"]["l"])),
@@ -472,14 +540,52 @@ def check_design(structure, values, design):
     return out
 
 
+def _with_shaft_entries(structure, lists, design):
+    """The [shaft] lists (NumPy copies) with the design's [shaft] entries in them."""
+    lists = {k: np.array(v, np.float64) for k, v in lists.items()}
+    for name, value in design.items():
+        entry = shaft_variable(name)
+        if entry is not None:
+            lists[entry[0]][structure.shaft_sections.index(entry[1])] = value
+    return lists
+
+
+def _check_shaft_sections(structure, values, design):
+    """ValueError naming the section when the design's [shaft] entries leave it outside its
+    domain (Øi < Øe, h + t within the wall)."""
+    from tripodjax import shaft
+
+    lists = _with_shaft_entries(structure, values["shaft"], design)
+    touched = {shaft_variable(k)[1] for k in design if shaft_variable(k)}
+    for name in touched:
+        i = structure.shaft_sections.index(name)
+        try:
+            shaft.Section(*(float(lists[k][i]) for k in SECTION_FIELDS))
+        except ValueError as error:
+            raise ValueError(f"design: shaft section {name!r}: {error}") from None
+
+
+# The Section fields' [shaft] lists, in its argument order.
+SECTION_FIELDS = (
+    "outer_diameter_mm",
+    "hardened_depth_mm",
+    "transition_depth_mm",
+    "inner_diameter_mm",
+)
+
+
 def design_values(spec, design):
     """(values, x) of a checked ``{variable: value}`` design (spec units): the numbers with the
     given fixed variables overridden, and the free-variable vector (internal units)."""
     structure = spec.structure
     design = check_design(structure, spec.values, design)
     values = jax.tree_util.tree_map(np.asarray, spec.values)
-    for key, value in design.items():
-        if key not in structure.free:
+    fixed = {k: v for k, v in design.items() if k not in structure.free}
+    values["shaft"] = dict(
+        values["shaft"], **_with_shaft_entries(structure, values["shaft"], fixed)
+    )
+    for key, value in fixed.items():
+        if not shaft_variable(key):
             section, name = VARIABLES[key][:2]
             values[section] = dict(
                 values[section], **{name: np.asarray(from_spec_units(key, value))}

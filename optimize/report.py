@@ -19,7 +19,7 @@ import tempfile
 
 import numpy as np
 
-from tripodjax.optimize.spec import QUANTITIES, REPORT_KEYS
+from tripodjax.optimize.spec import REPORT_KEYS, quantity_unit
 
 
 def versions():
@@ -99,7 +99,7 @@ def ranked_sensitivities(elasticities, count):
 
 
 def design_keys(design):
-    return {REPORT_KEYS[k]: v for k, v in design.items()}
+    return {REPORT_KEYS.get(k, k): v for k, v in design.items()}  # a [shaft] entry: its name
 
 
 def check_pairing(result, spec):
@@ -187,7 +187,7 @@ def report_dict(
         "fidelity": {"solver": result.fidelity, "n_theta": spec.structure.n_theta},
         "constraints": result.constraints,
         "quantities": result.quantities,
-        "units": {q: QUANTITIES[q][0] for q in result.quantities},
+        "units": {q: quantity_unit(q) for q in result.quantities},
         "multipliers": result.multipliers,
         "history": result.history,
         "starts": result.starts,

@@ -39,7 +39,7 @@ import numpy as np
 from tripodjax.optimize._compiled import call
 from tripodjax.optimize.problem import bounds, check_result, constraint_names
 from tripodjax.optimize.solver import BOUND_TOLERANCE, Result, _evaluation, evaluate_points
-from tripodjax.optimize.spec import VARIABLES, Spec
+from tripodjax.optimize.spec import VARIABLES, Spec, shaft_variable
 
 ACTIVE_MULTIPLIER = 1e-6  # λ above this: the constraint is active
 SWITCH_STEP = 0.01  # relative change of an input within which a switch withholds its derivatives
@@ -53,8 +53,9 @@ SKIPPED = ("bounds", "solver", "uncertainty")
 
 
 def _inputs(structure, values):
-    """The spec's numbers that enter the model: {(section, key): array}, free variables' own values left out."""
-    free = {VARIABLES[v][:2] for v in structure.free}
+    """The spec's numbers that enter the model: {(section, key): array}, free variables' own values
+    left out (a free [shaft] entry's list stays: its other entries are inputs; see ``_free_entries``)."""
+    free = {VARIABLES[v][:2] for v in structure.free if not shaft_variable(v)}
     return {
         (section, key): np.asarray(value, np.float64)
         for section, entries in values.items()
@@ -212,6 +213,16 @@ def _spec_key(section, key):
     return f"{section}.{key}", 1.0
 
 
+def _free_entries(structure):
+    """The labels (``shaft.<list>[i]``) of the list entries that are free variables."""
+    out = set()
+    for name in structure.free:
+        entry = shaft_variable(name)
+        if entry is not None:
+            out.add(f"shaft.{entry[0]}[{structure.shaft_sections.index(entry[1])}]")
+    return out
+
+
 def _labels(inputs):
     """Per column: (label, factor to spec units, the spec-unit value a relative change is of)."""
     out = []
@@ -292,7 +303,10 @@ def sensitivities(spec: Spec, result: Result) -> dict:
     labels = _labels(inputs)
     derivatives, elasticities = {}, {}
     optimum = {v: result.design[v] for v in structure.free}
+    free_entries = _free_entries(structure)
     for j, (label, factor, relative_of) in enumerate(labels):
+        if label in free_entries:  # a free variable's own spec value: not an input
+            continue
         switching = []
         for name, (level, slope) in switches.items():
             # level + slope·Δp = 0 at Δp = −level / slope (internal units); relative to p.

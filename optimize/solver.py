@@ -48,7 +48,7 @@ from tripodjax.optimize.problem import (
     objective_and_margins,
     to_spec_units,
 )
-from tripodjax.optimize.spec import REPORT_KEYS, Spec, Structure
+from tripodjax.optimize.spec import Spec, Structure
 from tripodjax.progress import ProgressMeter, resolve
 from tripodjax.results import RESULTS
 
@@ -485,11 +485,7 @@ def _choose(out, tolerance):
 
 
 def _design_dict(structure, x):
-    design = {}
-    for name in REPORT_KEYS:
-        if name in structure.free:
-            design[name] = to_spec_units(name, x[structure.free.index(name)])
-    return design
+    return {name: to_spec_units(name, x[i]) for i, name in enumerate(structure.free)}
 
 
 def _result(structure, values, out):

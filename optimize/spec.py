@@ -179,13 +179,18 @@ outer_diameter_ref = 94.6  # outer-diameter proxy 2R + d of the workbook joint [
 [bounds]
 # A variable is free when it has an interval here, else fixed at its value in its own
 # section ([design], [layout], [hertz], [friction]). Free-able: R, d_roller [mm], l [mm],
-# gamma0_deg [deg], conformity, lam, mu_slp. "fixed" removes a default interval.
+# gamma0_deg [deg], conformity, lam, mu_slp, and one [shaft] entry as a quoted key
+# "shaft.<list>[<section>]" with <list> outer_diameter_mm, inner_diameter_mm, hardened_depth_mm
+# or transition_depth_mm [mm], e.g. "shaft.outer_diameter_mm[C-C]" = [18.5, 30.0] (the section
+# must stay valid at every corner: Øi < Øe, h + t ≤ (Øe − Øi)/2). "fixed" removes a default interval.
 R = [15.0, 40.0]         # track pitch-circle radius [mm]
 d_roller = [20.0, 70.0]  # roller diameter [mm]
 
 [constraints]
 # max_<q> / min_<q> for any quantity q; the Hertz static capacity (≥ shock_factor · M_max)
-# and the life (≥ required_km) are always required.
+# and the life (≥ required_km) are always required, and with a [vehicle] the rest of the
+# halfshaft: each [shaft] section's static safety ≥ 1 and damage < shaft.allowed_damage, the
+# [outboard] joint's M_s / M_max ≥ shock_factor and life ≥ required_km.
 min_R_over_d = 0.63      # experience range for tripods (workbook)
 max_R_over_d = 0.83
 # max_outer_diameter = 100.0  # optional envelope on 2R + d [mm]
@@ -247,6 +252,30 @@ QUANTITIES = {
     "M_sd": ("N·m", "short-lasting dynamic capacity at P_sd and γ0 (§4.2)"),
     "life_km": ("km", "Palmgren–Miner life under the spectrum (4.2.1–4.2.3)"),
     "R_over_d": ("–", "R / d"),
+    "shaft_area": (
+        "mm²",
+        "the [shaft] sections' cross-section areas π(Øe² − Øi²)/4, summed: the shaft's weight "
+        "per unit length, each section alike",
+    ),
+    "shaft_static_safety": (
+        "–",
+        "the smallest static safety τ_adm/τ of the [shaft] sections (each at its strength "
+        "profile's kinks, M_max forward and backward; required ≥ 1); per section as "
+        "shaft_static_safety[<name>]",
+    ),
+    "shaft_damage": (
+        "–",
+        "the largest fatigue damage of the [shaft] sections (Miner's sum at r_o and r_TR; "
+        "required < shaft.allowed_damage); per section as shaft_damage[<name>]",
+    ),
+    "outboard_static_safety": (
+        "–",
+        "the outboard joint's static safety M_s / M_max (required ≥ loads.shock_factor)",
+    ),
+    "outboard_life_km": (
+        "km",
+        "the outboard joint's life under [outboard.conditions] (required ≥ life.required_km)",
+    ),
 }
 KINEMATIC_QUANTITIES = ("irregularity", "eccentricity", "gamma_ripple", "roller_stroke")
 GAF_QUANTITIES = ("gaf_rms", "gaf_peak", "gaf_third_order")
@@ -259,6 +288,22 @@ FORCE_QUANTITIES = {
 }
 # The quantities computed from the halfshaft's revolution (a kinematic solve per design).
 REVOLUTION_QUANTITIES = KINEMATIC_QUANTITIES + GAF_QUANTITIES + tuple(FORCE_QUANTITIES)
+# The rest of the halfshaft ([shaft], [outboard]; tripodjax.optimize.structural), from the
+# vehicle's load cycles; the two per-section ones are also given per section, "<q>[<name>]".
+HALFSHAFT_QUANTITIES = (
+    "shaft_area",
+    "shaft_static_safety",
+    "shaft_damage",
+    "outboard_static_safety",
+    "outboard_life_km",
+)
+PER_SECTION_QUANTITIES = ("shaft_static_safety", "shaft_damage")
+
+
+def quantity_unit(name):
+    """The unit of a quantity, a per-section one (``shaft_damage[C-C]``) as its quantity's."""
+    return QUANTITIES[name.partition("[")[0]][0]
+
 
 # Design variable → (section, its value's key inside (γ0 in rad), unit, domain (low, high, low
 # open)). Its key in the file is the variable's own name (gamma0_deg in degrees); report keys add
@@ -272,6 +317,36 @@ VARIABLES = {
     "lam": ("friction", "lam", "–", (0.0, None, False)),
     "mu_slp": ("friction", "mu_slp", "–", (0.0, None, False)),
 }
+# A [shaft] entry as a design variable: "shaft.<list>[<section name>]" [mm], one of these lists.
+SHAFT_VARIABLES = (
+    "outer_diameter_mm",
+    "inner_diameter_mm",
+    "hardened_depth_mm",
+    "transition_depth_mm",
+)
+
+
+def shaft_variable(name):
+    """(list key, section name) of a shaft design variable's name, or None for another name."""
+    if not (name.startswith("shaft.") and name.endswith("]") and "[" in name):
+        return None
+    key, _, section = name[len("shaft.") : -1].partition("[")
+    return key, section
+
+
+def shaft_variable_name(key, section):
+    return f"shaft.{key}[{section}]"
+
+
+def variable_domain(name):
+    """(unit, (low, high, low open)) of a design variable's values; a [shaft] entry's in mm."""
+    entry = shaft_variable(name)
+    if entry is None:
+        return VARIABLES[name][2], VARIABLES[name][3]
+    low, low_open, _ = SHAFT_LISTS[entry[0]]
+    return "mm", (low, None, low_open)
+
+
 REPORT_KEYS = {
     "R": "R_mm",
     "d_roller": "d_roller_mm",
@@ -340,7 +415,7 @@ class Structure:
     Two specs with equal structures share one compiled optimiser.
     """
 
-    free: tuple  # free design variables, in VARIABLES order
+    free: tuple  # free design variables, in VARIABLES order, then the [shaft] entries' (section order)
     objective: tuple  # quantities with a weight
     constraints: tuple  # (name, quantity, sense) with sense "max" or "min"
     condition_names: tuple
@@ -365,10 +440,15 @@ class Structure:
     outboard_conditions: tuple = ()  # [outboard.conditions] names
 
     @property
+    def halfshaft(self):
+        """Whether the rest of the halfshaft is checked: it needs the vehicle's load cycles."""
+        return bool(self.vehicle_modes)
+
+    @property
     def needs(self):
         """The quantities the objective and constraints use (computed; nothing else is)."""
         used = set(self.objective) | {q for _, q, _ in self.constraints}
-        return used | {"static_capacity", "life_km"}
+        return used | {"static_capacity", "life_km"} | set(HALFSHAFT_QUANTITIES * self.halfshaft)
 
 
 # Internal value (section, key) in radians → its key in the file (a pair: a nested table), in degrees.
@@ -757,24 +837,90 @@ def _constraints(table):
     return tuple(names), values, chances
 
 
-def _bounds(table, fixed):
+def _no_halfshaft(free, terms, constraints):
+    """SpecError when a spec without a vehicle frees a [shaft] entry or uses the halfshaft's
+    quantities: its checks need the vehicle's load cycles."""
+    used = [f"bounds.{k}" for k in free if shaft_variable(k)]
+    used += [f"objective.w_{q}" for q in terms if q in HALFSHAFT_QUANTITIES]
+    used += [f"constraints.{n}" for n, q, _ in constraints if q in HALFSHAFT_QUANTITIES]
+    if used:
+        raise SpecError(
+            f"{used[0]} needs the spec's [vehicle]: the halfshaft's checks take its load cycles "
+            "(gears and driving modes); this spec gives loads.M_max and the load spectrum instead"
+        )
+
+
+def _shaft_bound(key, names):
+    """(low, high, low open, unit) of the values of a [bounds] key naming a [shaft] entry."""
+    entry = shaft_variable(key)
+    if entry is None or entry[0] not in SHAFT_VARIABLES or entry[1] not in names:
+        raise SpecError(
+            f'unknown key bounds.{key}; allowed: {", ".join(VARIABLES)}, or "shaft.<list>[<section>]" '
+            f"with <list> one of {', '.join(SHAFT_VARIABLES)} and <section> one of shaft.names "
+            f"({', '.join(names)})"
+        )
+    low, low_open, unit = SHAFT_LISTS[entry[0]]
+    return low, None, low_open, unit
+
+
+def _shaft_corners(bounds, lists, names):
+    """Refuse bounds under which a [shaft] section can leave its domain (Øi < Øe, h + t within
+    the wall): each section with a free entry is checked at its thinnest-walled corner."""
+    from tripodjax import shaft
+
+    for i, name in enumerate(names):
+        keys = {k: shaft_variable_name(k, name) for k in SHAFT_VARIABLES}
+        if not any(v in bounds for v in keys.values()):
+            continue
+        corner = {}
+        for k, variable in keys.items():
+            side = 0 if k == "outer_diameter_mm" else 1  # the smallest Øe, the largest others
+            corner[k] = bounds[variable][side] if variable in bounds else float(lists[k][i])
+        try:
+            shaft.Section(
+                corner["outer_diameter_mm"],
+                corner["hardened_depth_mm"],
+                corner["transition_depth_mm"],
+                corner["inner_diameter_mm"],
+            )
+        except ValueError as error:
+            where = ", ".join(
+                f'bounds."{v}"[{0 if k == "outer_diameter_mm" else 1}] = {corner[k]:g}'
+                if v in bounds
+                else f"shaft.{k}[{i}] = {corner[k]:g}"
+                for k, v in keys.items()
+            )
+            raise SpecError(
+                f"bounds of shaft section {name!r}: {error} at the corner of its bounds with the "
+                f"thinnest wall ({where}); narrow the bounds"
+            ) from None
+
+
+def _bounds(table, fixed, shaft_lists, shaft_names):
     given = table["bounds"]
     bounds = {}
     for key, value in given.items():
-        if key not in VARIABLES:
-            raise SpecError(f"unknown key bounds.{key}; allowed: {', '.join(VARIABLES)}")
+        if key == "shaft" and isinstance(value, dict):
+            raise SpecError(
+                "bounds.shaft is a table; give each [shaft] entry as one quoted key, e.g. "
+                '"shaft.outer_diameter_mm[C-C]" = [18.5, 30.0]'
+            )
+        if key in VARIABLES:
+            _, _, unit, (low, high, low_open) = VARIABLES[key]
+            unit = "°" if unit == "deg" else ("" if unit == "–" else f" {unit}")
+        else:
+            low, high, low_open, unit = _shaft_bound(key, shaft_names)
         if isinstance(value, str) and value == "fixed":
             continue
         if not isinstance(value, list) or len(value) != 2:
             raise SpecError(f'bounds.{key} = {value!r} must be a pair [lo, hi] or "fixed"')
-        _, _, unit, (low, high, low_open) = VARIABLES[key]
-        unit = "°" if unit == "deg" else ("" if unit == "–" else f" {unit}")
         lo, hi = _numbers(
             {"bounds": {key: value}}, "bounds", key, low, high, low_open=low_open, unit=unit
         )
         if not lo < hi:
             raise SpecError(f"bounds.{key} = {value!r} is not allowed: [lo, hi] with lo < hi")
         bounds[key] = (lo, hi)
+    _shaft_corners(bounds, shaft_lists, shaft_names)
     # R/l ≤ 0.2 at every corner of the box (and at the fixed values).
     r_hi = bounds["R"][1] if "R" in bounds else fixed["R"]
     l_lo = bounds["l"][0] if "l" in bounds else fixed["l"]
@@ -1017,7 +1163,7 @@ def _check(table):
             f"constraints.max_life_km = {max_life:g} is below life.required_km = "
             f"{v['life']['required_km']:g}: no design can meet both"
         )
-    bounds = _bounds(table, fixed)
+    bounds = _bounds(table, fixed, v["shaft"], shaft_sections)
     v["bounds"] = {
         k: (math.radians(lo), math.radians(hi)) if k == "gamma0_deg" else (lo, hi)
         for k, (lo, hi) in bounds.items()
@@ -1037,10 +1183,18 @@ def _check(table):
             f"{product} = {numbers} = {work:.3g} is not allowed: at most {MAX_WORK:.3g} "
             "(the work of one solve); lower one of them"
         )
-    inputs, v["uncertainty"] = _uncertainty(table, v, tuple(k for k in VARIABLES if k in bounds))
+    free = tuple(k for k in VARIABLES if k in bounds) + tuple(
+        shaft_variable_name(key, name)
+        for name in shaft_sections
+        for key in SHAFT_VARIABLES
+        if shaft_variable_name(key, name) in bounds
+    )
+    if not (m_max_from_vehicle or spectrum_from_vehicle):
+        _no_halfshaft(free, terms, constraints)
+    inputs, v["uncertainty"] = _uncertainty(table, v, free)
     v["solver"] = {"tolerance": _number(table, "solver", "tolerance", 1e-12, 1e-1)}
     structure = Structure(
-        free=tuple(k for k in VARIABLES if k in bounds),
+        free=free,
         objective=terms,
         constraints=constraints,
         condition_names=names,
@@ -1063,7 +1217,8 @@ def _check(table):
     )
     if not structure.free:
         raise SpecError(
-            f"bounds gives no free variable; give an interval for at least one of {', '.join(VARIABLES)}"
+            f"bounds gives no free variable; give an interval for at least one of {', '.join(VARIABLES)} "
+            'or a [shaft] entry ("shaft.<list>[<section>]")'
         )
     values = jax.tree_util.tree_map(lambda x: np.asarray(x, np.float64), v)
     return Spec(structure=structure, values=values, resolved=table)

@@ -18,36 +18,54 @@ Requirements:
 
 import functools
 import math
+from collections.abc import Mapping
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from tripodjax import life, outboard, shaft
+from tripodjax.optimize._compiled import call
 from tripodjax.optimize.problem import (
     check_spec,
+    design_values,
     driving_modes,
+    full_design,
     gear_names,
     load_cycles,
     load_spectrum,
+    spec_design,
 )
-from tripodjax.optimize.spec import Spec
+from tripodjax.optimize.spec import SHAFT_VARIABLES, Spec, shaft_variable
 from tripodjax.results import RESULTS
 
 
-def _sections(values):
+def shaft_lists(structure, values, design):
+    """The [shaft] geometry lists (``SHAFT_VARIABLES``) with the design's free entries in them."""
+    lists = {k: jnp.asarray(values["shaft"][k]) for k in SHAFT_VARIABLES}
+    for name in structure.free:
+        entry = shaft_variable(name)
+        if entry is not None:
+            key, section = entry
+            i = structure.shaft_sections.index(section)
+            lists[key] = lists[key].at[i].set(design[name])
+    return lists
+
+
+def _sections(structure, values, design):
     """The [shaft] sections and their materials, batched over the sections (leading axis)."""
     s = values["shaft"]
-    n = jnp.shape(s["outer_diameter_mm"])[0]
+    lists = shaft_lists(structure, values, design)
+    n = jnp.shape(lists["outer_diameter_mm"])[0]
 
     def each(x):
         return jnp.broadcast_to(jnp.asarray(x), (n,))
 
     sections = shaft.Section(
-        s["outer_diameter_mm"],
-        s["hardened_depth_mm"],
-        s["transition_depth_mm"],
-        s["inner_diameter_mm"],
+        lists["outer_diameter_mm"],
+        lists["hardened_depth_mm"],
+        lists["transition_depth_mm"],
+        lists["inner_diameter_mm"],
     )
     materials = shaft.Material(
         each(s["core_uts_MPa"]),
@@ -77,14 +95,19 @@ def outboard_joint(values):
     )
 
 
-@functools.partial(jax.jit, static_argnums=0)
-def _halfshaft(structure, values):
+def halfshaft_checks(structure, values, design):
+    """Every check of the rest of the halfshaft for a design (``problem.full_design``): JAX,
+    differentiable in the design's [shaft] entries and in every number of the spec.
+
+    The one computation behind the report ([`halfshaft_report`][tripodjax.optimize.halfshaft_report])
+    and the optimiser's quantities and constraints (``problem.quantities``).
+    """
     cycles = load_cycles(structure, values)
     torque = jnp.stack([cycles.M_max_forward, cycles.M_max_backward])
     rows = shaft.fatigue_cycles(
         cycles, driving_modes(structure, values), reading=structure.shaft_reading
     )
-    sections, materials = _sections(values)
+    sections, materials = _sections(structure, values, design)
     static = jax.vmap(lambda s, m: shaft.static_check(s, m, torque))(sections, materials)
     fatigue = jax.vmap(
         lambda s, m: shaft.fatigue_check(s, m, rows, reading=structure.shaft_reading)
@@ -102,8 +125,11 @@ def _halfshaft(structure, values):
         angle_law=structure.angle_law,
         reading=structure.outboard_reading,
     )
+    outer, inner = sections.outer_diameter, sections.inner_diameter
     return {
         "torque": torque,
+        "sections": sections,
+        "area": jnp.sum(jnp.pi / 4.0 * (outer**2 - inner**2)),
         "static_safety": jnp.min(static.safety, axis=(-2, -1)),
         "static_result": static.result,
         "damage": fatigue.damage,  # (section, radius)
@@ -119,6 +145,38 @@ def _halfshaft(structure, values):
         "damage_per_condition": joint_life.damage_per_condition,
         "life_result": joint_life.result,
     }
+
+
+def halfshaft_quantities(structure, values, design):
+    """The optimiser's quantities of the rest of the halfshaft (``spec.HALFSHAFT_QUANTITIES``):
+    (quantities, the per-section ones ``shaft_static_safety[<name>]`` and ``shaft_damage[<name>]``,
+    (the sections' result code, the outboard joint's)).
+
+    A section's static safety is the smallest over its profile's kinks and both torques, its
+    damage the larger of its two radii's (as the report's); the outboard joint's static safety
+    is M_s / M_max forward.
+    """
+    out = halfshaft_checks(structure, values, design)
+    damage = jnp.max(out["damage"], axis=-1)
+    q = {
+        "shaft_area": out["area"],
+        "shaft_static_safety": jnp.min(out["static_safety"]),
+        "shaft_damage": jnp.max(damage),
+        "outboard_static_safety": out["M_s"] / out["torque"][0],
+        "outboard_life_km": out["life_km"],
+    }
+    sections = {}
+    for i, name in enumerate(structure.shaft_sections):
+        sections[f"shaft_static_safety[{name}]"] = out["static_safety"][i]
+        sections[f"shaft_damage[{name}]"] = damage[i]
+    shaft_code = jnp.maximum(jnp.max(out["static_result"]), jnp.max(out["fatigue_result"]))
+    joint_code = jnp.maximum(jnp.max(out["hertz_result"]), jnp.max(out["life_result"]))
+    return q, sections, (shaft_code, joint_code)
+
+
+@functools.partial(jax.jit, static_argnums=0)
+def _halfshaft(structure, values, x):
+    return halfshaft_checks(structure, values, full_design(structure, values, x))
 
 
 def _requirement(name, value, relation, limit, text):
@@ -150,8 +208,12 @@ def summary(report: dict) -> str:
     return "halfshaft: " + "; ".join(failed)
 
 
-def halfshaft_report(spec: Spec) -> dict:
+def halfshaft_report(spec: Spec, design: Mapping[str, float] | None = None) -> dict:
     """The ``halfshaft`` section of the report: every [shaft] section and the outboard joint.
+
+    ``design``: a design ``{variable: value}`` (spec units, as [`evaluate`][tripodjax.optimize.evaluate],
+    e.g. ``result.design``) whose free [shaft] entries (``"shaft.outer_diameter_mm[C-C]"``) are
+    checked; None: the spec's own [shaft] numbers.
 
     Needs the spec's ``[vehicle]`` (its load cycles: the working torques, the gears and the
     driving modes); a spec that gives ``loads.M_max`` and the ``[life]`` lists instead raises
@@ -180,10 +242,12 @@ def halfshaft_report(spec: Spec) -> dict:
             "the sections' fatigue cycles); this spec gives loads.M_max and the load spectrum "
             "instead"
         )
-    values = spec.values
+    values, x = design_values(
+        spec, spec_design(structure, spec.values) if design is None else design
+    )
     with jax.enable_x64(True):  # float64, scoped to this call
-        out = jax.tree_util.tree_map(np.asarray, _halfshaft(structure, values))
-    s, o = values["shaft"], values["outboard"]
+        out = jax.tree_util.tree_map(np.asarray, call(_halfshaft, structure, values, x))
+    s, o, geometry = values["shaft"], values["outboard"], out["sections"]
     forward, backward = map(float, out["torque"])
     gears = gear_names(values)
     sections = []
@@ -198,9 +262,9 @@ def halfshaft_report(spec: Spec) -> dict:
         sections.append(
             {
                 "name": name,
-                "outer_diameter_mm": float(s["outer_diameter_mm"][i]),
-                "inner_diameter_mm": float(s["inner_diameter_mm"][i]),
-                "hardened_depth_mm": float(s["hardened_depth_mm"][i]),
+                "outer_diameter_mm": float(geometry.outer_diameter[i]),
+                "inner_diameter_mm": float(geometry.inner_diameter[i]),
+                "hardened_depth_mm": float(geometry.hardened_depth[i]),
                 "static_safety": safety,
                 "required_static_safety": 1.0,
                 "static_passed": static[0] and code == RESULTS.successful,
