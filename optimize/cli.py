@@ -414,7 +414,13 @@ def _verdict(result):
         worst = sorted(
             (c["margin"], name) for name, c in result.constraints.items() if c["margin"] < 0
         )
-        listed = ", ".join(f"{name} (margin {m:+.3g})" for m, name in worst[:3])
+        from tripodjax.optimize.problem import fixed_constraints
+
+        fixed = fixed_constraints(result.structure) if result.structure else ()
+        listed = ", ".join(
+            f"{name} (margin {m:+.3g}{'; no free variable changes it' if name in fixed else ''})"
+            for m, name in worst[:3]
+        )
         # The solver may report a start within its acceptable level of feasibility, for its far
         # better objective, beside another that was feasible (solver.ACCEPTABLE).
         others = sum(start["feasible"] for start in result.starts)

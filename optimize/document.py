@@ -173,18 +173,24 @@ def _summary(report):
         )
     )
     rows.append(["design", "", "ad hoc optimum", name])
-    from tripodjax.optimize.spec import REPORT_KEYS, VARIABLES
+    from tripodjax.optimize.spec import REPORT_KEYS, VARIABLES, shaft_variable, variable_domain
 
     free = [REPORT_KEYS.get(v, v) for v in report.get("free_variables", [])]
+    spec = report.get("spec") or {}
     for key in ["R_mm", "d_roller_mm", *[k for k in free if k not in ("R_mm", "d_roller_mm")]]:
         variable = next((v for v, k in REPORT_KEYS.items() if k == key), key)
-        section, _, unit, _ = VARIABLES.get(variable, ("", "", "", None))
+        unit = variable_domain(variable)[0]
         if not choice:
             other = name
         elif key in choice:
             other = cell(choice[key])
+        elif (entry := shaft_variable(variable)) is not None:  # the spec's [shaft] entry
+            shaft = spec.get("shaft", {})
+            names = shaft.get("names", [])
+            i = names.index(entry[1]) if entry[1] in names else None
+            other = cell(shaft.get(entry[0], [])[i]) if i is not None else ""
         else:  # the catalogue keeps every variable but R and d at the spec's value
-            other = cell((report.get("spec") or {}).get(section, {}).get(variable))
+            other = cell(spec.get(VARIABLES[variable][0], {}).get(variable))
         rows.append([key.removesuffix(f"_{unit}"), unit, cell(design.get(key)), other])
     rows.append(
         [
@@ -756,7 +762,7 @@ def _sensitivities(report):
         raise NotAvailable(notes_in["unavailable"])
     if not derivatives:
         raise NotAvailable("the report lists no sensitivities")
-    from tripodjax.optimize.spec import VARIABLES
+    from tripodjax.optimize.spec import variable_domain
 
     elasticities = report.get("elasticities")
     if elasticities is None:
@@ -773,7 +779,7 @@ def _sensitivities(report):
     ranked = ranked_sensitivities({k: elasticities[k] for k in derivatives}, SENSITIVITY_ROWS)
     columns = [Column("spec key", kind="text"), Column("unit", kind="text"), Column("value")]
     for out in outputs:
-        unit = "–" if out == "objective" else VARIABLES.get(out, ("", "", "–"))[2]
+        unit = "–" if out == "objective" else variable_domain(out)[0]
         columns.append(Column(f"d {out} / d p", f"{unit} per unit of p"))
     columns += [
         Column("elasticity of the objective" if out == "objective" else f"elasticity of {out}", "–")
@@ -896,13 +902,13 @@ def _pareto(report):
         raise NotAvailable("the objective has no GAF term: no Pareto front was swept")
     free = report.get("free_variables") or []
     from tripodjax.optimize.report import SAME_DESIGN
-    from tripodjax.optimize.spec import REPORT_KEYS, VARIABLES
+    from tripodjax.optimize.spec import REPORT_KEYS, variable_domain
 
-    keys = [REPORT_KEYS.get(v, v) for v in free]
+    keys = [REPORT_KEYS.get(v, v) for v in free]  # a [shaft] entry: its own name
+    units = [variable_domain(v)[0] for v in free]
     columns = [Column("w_gaf_rms", "–"), Column("weights giving this design", kind="text")]
     columns += [
-        Column(k.removesuffix(f"_{VARIABLES[v][2]}"), VARIABLES[v][2])
-        for v, k in zip(free, keys, strict=True)
+        Column(k.removesuffix(f"_{unit}"), unit) for k, unit in zip(keys, units, strict=True)
     ]
     columns += [
         Column("GAF RMS", "N"),

@@ -77,6 +77,17 @@ def halfshaft_constraint_names(structure):
     return sections + ("outboard_static", "outboard_life")
 
 
+def fixed_constraints(structure):
+    """The halfshaft constraints that no free variable changes: a [shaft] section's checks when
+    none of its entries is free, and the outboard joint's (no design variable enters it)."""
+    free = {shaft_variable(v)[1] for v in structure.free if shaft_variable(v)}
+    return tuple(
+        name
+        for name in halfshaft_constraint_names(structure)
+        if not any(name.endswith(f"[{section}]") for section in free)
+    )
+
+
 def constraint_names(structure):
     """The constraints in margin order: the two Hertz requirements, the rest of the halfshaft's,
     then the spec's."""

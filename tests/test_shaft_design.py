@@ -167,6 +167,61 @@ def test_the_default_spec_checks_the_halfshaft_by_default():
     )
 
 
+def test_the_constraints_no_free_variable_changes_are_named(spec):
+    from types import SimpleNamespace
+
+    from tripodjax.optimize.cli import _verdict
+
+    default = optimize.load_spec().structure
+    halfshaft = problem.halfshaft_constraint_names(default)
+    assert problem.fixed_constraints(default) == halfshaft  # no [shaft] entry free
+    fixed = problem.fixed_constraints(spec.structure)  # the outboard stem's diameter free
+    assert f"shaft_static[{STEM}]" not in fixed and f"shaft_fatigue[{STEM}]" not in fixed
+    assert set(fixed) == set(halfshaft) - {f"shaft_static[{STEM}]", f"shaft_fatigue[{STEM}]"}
+    # An infeasible run names a violated constraint that no free variable changes.
+    margins = {"life": 0.1, "outboard_life": -0.0343, f"shaft_fatigue[{STEM}]": -0.01}
+    result = SimpleNamespace(
+        result="successful",
+        feasible=False,
+        constraints={k: {"margin": m} for k, m in margins.items()},
+        starts=[{"feasible": False}],
+        structure=spec.structure,
+    )
+    message, _ = _verdict(result)
+    assert message == (
+        "infeasible: no start reached feasibility; smallest violations: outboard_life (margin "
+        f"-0.0343; no free variable changes it), shaft_fatigue[{STEM}] (margin -0.01)"
+    )
+
+
+def test_the_report_tables_give_a_shaft_variable_its_unit_and_spec_value():
+    from tripodjax.optimize import document
+
+    body = {
+        "free_variables": ["R", "d_roller", FREE],
+        "design": {"R_mm": 26.0, "d_roller_mm": 41.0, FREE: 21.5},
+        "objective": 1.0,
+        "constraints": {},
+        "catalogue_choice": {
+            "family": "GE",
+            "size": "86",
+            "R_mm": 24.0,
+            "d_roller_mm": 38.0,
+            "objective": 1.1,
+        },
+        "spec": {"shaft": {"names": ["A-A", STEM], "outer_diameter_mm": [26.0, 24.5]}},
+        "pareto_front": [
+            {"w_gaf_rms": 1.0, "R_mm": 26.0, "d_roller_mm": 41.0, FREE: 21.5, "converged": True}
+        ],
+    }
+    tables = document.tables(body)
+    pareto = tables["pareto_front"]
+    column = [c.label for c in pareto.columns].index(f"{FREE} [mm]")
+    assert pareto.rows[0][column] == 21.5
+    row = next(r for r in tables["summary"].rows if r[0] == FREE)
+    assert row[1:] == ["mm", 21.5, 24.5]  # the catalogue keeps the spec's diameter
+
+
 LISTS = (
     "[loads]\nM_max = 1154.0\n[life]\ntorque = [1154.0, 350.0]\nspeed = [100.0, 1000.0]\n"
     "vehicle_speed = [28.0, 90.0]\nshare = [0.55, 0.45]\n"
