@@ -29,7 +29,7 @@ def margins_on_page(html):
     import re
 
     rows = re.findall(
-        r'<tr><td>(\w+)</td><td class="num (?:pass|fail)" data-value="([^"]+)">.*?'
+        r'<tr><td>([^<]+)</td><td class="num (?:pass|fail)" data-value="([^"]+)">.*?'
         r'<td class="num (?:pass|fail)" data-value="([^"]+)">',
         html.split('id="margins"')[1].split("</table>")[0],
     )

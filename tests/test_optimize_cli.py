@@ -439,6 +439,7 @@ def test_an_infeasible_verdict_says_whether_another_start_was_feasible():
             feasible=False,
             constraints={"life": {"margin": -3e-7}, "min_R_over_d": {"margin": 0.1}},
             starts=[{"feasible": f} for f in feasible_starts],
+            structure=None,
         )
 
     message, status = _verdict(result(False, False))
