@@ -294,6 +294,23 @@ def test_without_torque_no_force_and_no_failure():
         assert float(getattr(r, name)) == 0.0, name
 
 
+@pytest.mark.parametrize("name", ["gaf_rms", "gaf_third_order", "complementary_torque_steady"])
+def test_an_amplitudes_torque_derivative_is_its_slope_and_zero_at_no_torque(name):
+    """The amplitudes are norms, homogeneous of degree 1 in T: their T-derivative is q(T)/T for
+    T > 0; at T = 0 (the kink of |T|) it is 0, finite, not NaN (the documented subgradient)."""
+
+    def amplitude(torque):
+        inputs = forces.ForceInputs(torque, GREASE_A)
+        return getattr(forces.forces_halfshaft(CASE_N, inputs, 120), name)
+
+    with jax.enable_x64(True):
+        at_zero = float(jax.grad(amplitude)(0.0))
+        slope = float(jax.grad(amplitude)(1000.0))
+        value = float(amplitude(1000.0))
+    assert at_zero == 0.0
+    assert value > 0 and slope == pytest.approx(value / 1000.0, rel=1e-9)
+
+
 def test_statics_settles_the_factor_of_the_printed_gaf():
     """The mean normal load per roller is T/(3R) exactly (Σ N_k R = T at α = 0), so a friction μ_i
     per roller gives GAF = (T/3R) Σ μ_i, the default; the printed 3.2.15 is twice it."""

@@ -458,14 +458,8 @@ def _evaluate(layout, sol, rates, inputs, names):
         for case, group in (("running", RUNNING_QUANTITIES), ("lts", LTS_QUANTITIES))
         if set(names) & set(group)
     ]
-    if wanted:  # every case in one pass: a leading axis of the motions (one trace, one program)
-        motions = [_case_motion(inputs, case) for case in wanted]
-        speed, plunge = (
-            jnp.stack([jnp.asarray(m[i], dtype) for m in motions]).reshape(-1, 1) for i in (0, 1)
-        )
-        solved = _solve(R, kinematics, inputs, speed, plunge)
-        for i, case in enumerate(wanted):
-            cases[case] = jax.tree_util.tree_map(lambda x, i=i: x[i], solved)
+    for case in wanted:
+        cases[case] = _solve(R, kinematics, inputs, *_case_motion(inputs, case))
     for name in names:
         if name in RUNNING_QUANTITIES:
             out[name] = _running_quantity(name, cases["running"], torque, R)
@@ -508,6 +502,10 @@ class ForceResult:
             amplitudes of their orders 3 and 6 (the norm over X and Y) [N·m].
         roller_load_ratio: the largest N_k over the revolution over T/(3R) [–]
             (NaN without torque: 0/0).
+
+    The RMS, peak and order amplitudes and the steady couple are norms, ∝ |T|: at T = 0 their
+    derivative w.r.t. the torque is that of |T| at its kink; 0 is returned there (finite, a
+    subgradient), the exact slope q/T everywhere else.
         friction_power: mean power dissipated by friction [W], running case.
         result: worst [`RESULTS`][tripodjax.results.RESULTS] code of the kinematics
             over the revolution, or ``nonfinite`` where a quantity is not finite.
