@@ -83,16 +83,20 @@ def _elliptic_agm(m, m1):
     cancellation-free recursion c_{n+1} = c_n²/(4 a_{n+1}), so D is accurate
     at m → 0 and everything is smooth (differentiable) there.
     """
-    a = jnp.ones_like(m)
-    b = jnp.sqrt(m1)
-    s = jnp.ones_like(m)  # s_0 = c_0²/m with c_0² = m
-    weighted = 0.5 * s  # Σ 2^(n−1) s_n
-    weight = 0.5
-    for _ in range(_AGM_STEPS):
+    m, m1 = jnp.broadcast_arrays(m, m1)
+
+    def step(_, carry):
+        a, b, s, weight, weighted = carry
         a, b = 0.5 * (a + b), jnp.sqrt(a * b)
         s = s * s * m / (16.0 * a * a)
-        weight *= 2.0
-        weighted = weighted + weight * s
+        weight = 2.0 * weight
+        return a, b, s, weight, weighted + weight * s
+
+    one = jnp.ones_like(m)  # a_0 = 1, and s_0 = c_0²/m with c_0² = m
+    # Σ 2^(n−1) s_n; one loop body in the program, however many steps (and derivatives) it takes.
+    a, _, _, _, weighted = jax.lax.fori_loop(
+        0, _AGM_STEPS, step, (one, jnp.sqrt(m1), one, 0.5 * one, 0.5 * one)
+    )
     K = jnp.pi / (2.0 * a)
     return K, K * (1.0 - m * weighted), K * weighted
 
