@@ -5,7 +5,8 @@ command wraps its work in [`export_cache`][tripodjax.optimize._compiled.export_c
 each function is then exported once (``jax.export``) per spec structure, argument
 shapes, versions and package source, and a later process loads that export instead
 of tracing the Python again; with JAX's persistent compilation cache beside it, a
-warm command neither traces nor compiles. An entry holds its own key and is checked
+warm command neither traces nor compiles. Every optimiser program runs for milliseconds a
+call and is compiled for latency (``tripodjax._compile.LATENCY_BOUND``), exported or not. An entry holds its own key and is checked
 against the call's arguments when loaded; any mismatch removes it and exports again.
 """
 
@@ -18,6 +19,10 @@ import pathlib
 import tempfile
 
 import jax
+
+from tripodjax._compile import latency_bound_jit
+
+__all__ = ["batch_rows", "call", "export_cache", "latency_bound_jit", "rows_per_call"]
 
 _CACHE = contextvars.ContextVar("tripodjax_export_cache", default=None)
 _ROWS = contextvars.ContextVar("tripodjax_batch_rows", default=None)
@@ -109,13 +114,13 @@ class _ExportCache:
         if exported is False:  # this function cannot be exported here: call it directly
             return jitted(static, *args)
         if not from_disk:
-            return exported.call(*args)
+            return exported(*args)
         try:
-            return exported.call(*args)
+            return exported(*args)
         except Exception:  # an entry that passed the checks and still does not fit: replace it
             self._remove(key)
             self.loaded[key] = exported = self._export(key, jitted, static, args)
-            return jitted(static, *args) if exported is False else exported.call(*args)
+            return jitted(static, *args) if exported is False else exported(*args)
 
     def _path(self, key):
         return self.directory / f"{key}.jaxexport"
@@ -149,7 +154,7 @@ class _ExportCache:
         except Exception:  # corrupt, from another jaxlib, another key's, other arguments
             self._remove(key)
             return None
-        return exported
+        return _runner(exported)
 
     def _export(self, key, jitted, static, args):
         try:
@@ -166,7 +171,12 @@ class _ExportCache:
             os.replace(tmp, self._path(key))
         except OSError:
             pass  # a read-only cache only costs time
-        return exported
+        return _runner(exported)
+
+
+def _runner(exported):
+    """A function calling ``exported``, compiled as the function it was exported from was."""
+    return latency_bound_jit(exported.call)
 
 
 def _header(key):

@@ -44,7 +44,7 @@ from tripodjax._checks import check_instance, check_layout_domain, real_scalar
 from tripodjax.kinematics import metrics_from, revolution
 from tripodjax.layout import Layout
 from tripodjax.optimize import uncertainty
-from tripodjax.optimize._compiled import call, rows_per_call
+from tripodjax.optimize._compiled import call, latency_bound_jit, rows_per_call
 from tripodjax.optimize.spec import (
     FORCE_QUANTITIES,
     GAF_QUANTITIES,
@@ -257,7 +257,7 @@ def m_max(structure, values):
     return values["loads"]["M_max"]
 
 
-_m_max = jax.jit(m_max, static_argnums=0)
+_m_max = latency_bound_jit(m_max, static_argnums=0)
 
 
 def load_spectrum(structure, values):
@@ -473,7 +473,7 @@ def from_spec_units(name, value):
     return math.radians(value) if name == "gamma0_deg" else float(value)
 
 
-@functools.partial(jax.jit, static_argnums=0)
+@functools.partial(latency_bound_jit, static_argnums=0)
 def _evaluate(structure, values, x):
     return objective_and_margins(structure, values, x)
 
@@ -649,7 +649,7 @@ def evaluate(spec: Spec, design: Mapping[str, float]) -> dict:
     }
 
 
-@functools.partial(jax.jit, static_argnums=0)
+@functools.partial(latency_bound_jit, static_argnums=0)
 def _life(structure, values, x):
     result = joint_life(structure, values, full_design(structure, values, x))
     forward = backward = jnp.nan
@@ -757,7 +757,7 @@ FORCE_REPORT_KEYS = {
 }
 
 
-@functools.partial(jax.jit, static_argnums=0)
+@functools.partial(latency_bound_jit, static_argnums=0)
 def _forces_report(structure, values, x):
     design = full_design(structure, values, x)
     layout = Layout(design["R"], design["l"], design["gamma0_deg"])

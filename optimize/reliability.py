@@ -41,7 +41,7 @@ import numpy as np
 from jax.scipy.special import log_ndtr, ndtr
 
 from tripodjax.optimize import uncertainty
-from tripodjax.optimize._compiled import call
+from tripodjax.optimize._compiled import call, latency_bound_jit
 from tripodjax.optimize.problem import (
     constraint_names,
     design_values,
@@ -269,7 +269,7 @@ def _sorm(beta, kappa):
     )
 
 
-@functools.partial(jax.jit, static_argnums=0)
+@functools.partial(latency_bound_jit, static_argnums=0)
 def _form(structure, values, x):
     count = len(constraint_names(structure))
     return jax.vmap(lambda j: _hlrf(structure, values, x, j))(jnp.arange(count))

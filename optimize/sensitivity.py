@@ -36,7 +36,7 @@ import math
 import jax
 import numpy as np
 
-from tripodjax.optimize._compiled import call
+from tripodjax.optimize._compiled import call, latency_bound_jit
 from tripodjax.optimize.problem import bounds, check_result, constraint_names
 from tripodjax.optimize.solver import BOUND_TOLERANCE, Result, _evaluation, evaluate_points
 from tripodjax.optimize.spec import VARIABLES, Spec, shaft_variable
@@ -65,7 +65,7 @@ def _inputs(structure, values):
     }
 
 
-@functools.partial(jax.jit, static_argnums=0)
+@functools.partial(latency_bound_jit, static_argnums=0)
 def _pullback(structure, values, x, lists, cotangents):
     """For each cotangent row, the gradient w.r.t. ``lists`` of ⟨row, (f, c, ∇ₓf, Jₓc)⟩ at x.
 

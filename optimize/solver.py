@@ -39,7 +39,7 @@ import numpy as np
 import optax
 
 from tripodjax._checks import check_layout_domain
-from tripodjax.optimize._compiled import batch_rows, call
+from tripodjax.optimize._compiled import batch_rows, call, latency_bound_jit
 from tripodjax.optimize.problem import (
     bounds,
     constraint_names,
@@ -361,7 +361,7 @@ def evaluate_points(structure, values, x):
     )
 
 
-@functools.partial(jax.jit, static_argnums=0)
+@functools.partial(latency_bound_jit, static_argnums=0)
 def solve_batch(structure, values, z0, x_eval, evaluate_only):
     """Every problem of a flat batch: every argument carries a leading batch axis.
 

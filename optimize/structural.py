@@ -25,7 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from tripodjax import life, outboard, shaft
-from tripodjax.optimize._compiled import call
+from tripodjax.optimize._compiled import call, latency_bound_jit
 from tripodjax.optimize.problem import (
     check_spec,
     design_values,
@@ -174,7 +174,7 @@ def halfshaft_quantities(structure, values, design):
     return q, sections, (shaft_code, joint_code)
 
 
-@functools.partial(jax.jit, static_argnums=0)
+@functools.partial(latency_bound_jit, static_argnums=0)
 def _halfshaft(structure, values, x):
     return halfshaft_checks(structure, values, full_design(structure, values, x))
 
