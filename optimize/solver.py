@@ -154,14 +154,15 @@ def _kkt(x, lam, c, grad_f, jac, lower, upper):
     return jnp.maximum(stationarity, jnp.maximum(feasibility, complementarity))
 
 
-def solve_problem(structure, values, z0, x_eval=None, evaluate_only=False):
-    """Optimise one problem from start z0 (vmap this over a batch). Returns a dict of arrays.
+def _problem(structure, values, z0, x_eval, evaluate_only):
+    """The optimisation of one problem from start z0: ``(initial, iterate, answer)``.
 
-    One flat ``while_loop`` whose every iteration evaluates the model once (with its
-    Jacobian, forward mode) at a trial point and then plays the role that point has:
-    a line-search trial of the inner L-BFGS run, the end of that run (multiplier and
-    penalty update, KKT check), or the start. One copy of the model in the compiled
-    program keeps tracing and compilation short.
+    ``initial()`` is the loop's first state, ``iterate(state)`` one iteration, ``answer(state)``
+    the dict of arrays [`solve_batch`][tripodjax.optimize.solver.solve_batch] returns. Each
+    iteration evaluates the model once (with its Jacobian, forward mode) at a trial point and
+    then plays the role that point has: a line-search trial of the inner L-BFGS run, the end
+    of that run (multiplier and penalty update, KKT check), or the start; ``state["done"]``
+    ends it. One copy of the model in the compiled program keeps tracing and compilation short.
 
     With ``evaluate_only`` (traced) the loop stops after its first evaluation, made at
     ``x_eval`` (internal units, not bound to the box) instead of x(z0): the same compiled
@@ -187,29 +188,30 @@ def solve_problem(structure, values, z0, x_eval=None, evaluate_only=False):
     def pick(flag, new, old):
         return jax.tree_util.tree_map(lambda a, b: jnp.where(flag, a, b), new, old)
 
-    evaluation = _zero_evaluation(vector, to_x(z0))
-    nan_history = jnp.full((structure.max_outer + 1,), jnp.nan, dtype)
-    state = dict(
-        start=jnp.bool_(True),
-        done=jnp.bool_(False),
-        k=jnp.int32(0),  # outer iterations finished
-        i=jnp.int32(0),  # accepted steps of the current inner run
-        j=jnp.int32(0),  # backtracks of the current line search
-        inner_iterations=jnp.int32(0),
-        z=z0,
-        evaluation=evaluation,
-        lam=jnp.zeros_like(evaluation[1]),
-        rho=jnp.asarray(RHO_START, dtype),
-        kkt=jnp.asarray(jnp.inf, dtype),
-        value=jnp.asarray(jnp.inf, dtype),
-        grad=jnp.zeros_like(z0),
-        direction=jnp.zeros_like(z0),
-        slope=jnp.asarray(0.0, dtype),
-        alpha=jnp.asarray(0.0, dtype),
-        memory=lbfgs.init(z0),
-        history_objective=nan_history,
-        history_kkt=nan_history,
-    )
+    def initial():
+        evaluation = _zero_evaluation(vector, to_x(z0))
+        nan_history = jnp.full((structure.max_outer + 1,), jnp.nan, dtype)
+        return dict(
+            start=jnp.bool_(True),
+            done=jnp.bool_(False),
+            k=jnp.int32(0),  # outer iterations finished
+            i=jnp.int32(0),  # accepted steps of the current inner run
+            j=jnp.int32(0),  # backtracks of the current line search
+            inner_iterations=jnp.int32(0),
+            z=z0,
+            evaluation=evaluation,
+            lam=jnp.zeros_like(evaluation[1]),
+            rho=jnp.asarray(RHO_START, dtype),
+            kkt=jnp.asarray(jnp.inf, dtype),
+            value=jnp.asarray(jnp.inf, dtype),
+            grad=jnp.zeros_like(z0),
+            direction=jnp.zeros_like(z0),
+            slope=jnp.asarray(0.0, dtype),
+            alpha=jnp.asarray(0.0, dtype),
+            memory=lbfgs.init(z0),
+            history_objective=nan_history,
+            history_kkt=nan_history,
+        )
 
     x_eval = to_x(z0) if x_eval is None else x_eval
 
@@ -295,23 +297,25 @@ def solve_problem(structure, values, z0, x_eval=None, evaluate_only=False):
             history_kkt=jnp.where(inner_over, s["history_kkt"].at[k].set(kkt), s["history_kkt"]),
         )
 
-    s = jax.lax.while_loop(lambda s: jnp.logical_not(s["done"]), iterate, state)
-    f, c, grad_f, jac, q, code = s["evaluation"]
-    return dict(
-        gradient=grad_f,
-        jacobian=jac,
-        x=to_x(s["z"]),
-        lam=s["lam"],
-        objective=f,
-        margins=c + offset,
-        kkt=s["kkt"],
-        code=code,
-        outer_iterations=s["k"] - 1,
-        inner_iterations=s["inner_iterations"],
-        quantities=q,
-        history_objective=s["history_objective"],
-        history_kkt=s["history_kkt"],
-    )
+    def answer(s):
+        f, c, grad_f, jac, q, code = s["evaluation"]
+        return dict(
+            gradient=grad_f,
+            jacobian=jac,
+            x=to_x(s["z"]),
+            lam=s["lam"],
+            objective=f,
+            margins=c + offset,
+            kkt=s["kkt"],
+            code=code,
+            outer_iterations=s["k"] - 1,
+            inner_iterations=s["inner_iterations"],
+            quantities=q,
+            history_objective=s["history_objective"],
+            history_kkt=s["history_kkt"],
+        )
+
+    return initial, iterate, answer
 
 
 def evaluate_points(structure, values, x):
@@ -365,10 +369,26 @@ def evaluate_points(structure, values, x):
 def solve_batch(structure, values, z0, x_eval, evaluate_only):
     """Every problem of a flat batch: every argument carries a leading batch axis.
 
-    Rows with ``evaluate_only`` are evaluated at ``x_eval`` instead (see
-    [`solve_problem`][tripodjax.optimize.solver.solve_problem]).
+    Rows with ``evaluate_only`` are evaluated at ``x_eval`` instead (see ``_problem``).
+    One ``while_loop`` over the batch, each iteration the problems' ``iterate`` under
+    ``vmap`` (a finished row keeps its state), until every row is done: what ``vmap`` of
+    each problem's loop computes, traced once, where batching a traced loop took as long
+    again as tracing it (its body's jaxpr batched two or three times over, measured).
     """
-    return jax.vmap(functools.partial(solve_problem, structure))(values, z0, x_eval, evaluate_only)
+    problems = (values, z0, x_eval, evaluate_only)
+
+    def each(piece, *state):  # one of _problem's pieces, on every row
+        return jax.vmap(lambda p, *s: _problem(structure, *p)[piece](*s))(problems, *state)
+
+    def step(s):
+        done = s["done"]
+        return jax.tree_util.tree_map(
+            lambda new, old: jnp.where(done.reshape(done.shape + (1,) * (old.ndim - 1)), old, new),
+            each(1, s),
+            s,
+        )
+
+    return each(2, jax.lax.while_loop(lambda s: jnp.any(~s["done"]), step, each(0)))
 
 
 @dataclasses.dataclass
