@@ -56,6 +56,28 @@ XpArray: TypeAlias = Any
 """An array (or number) of the array module ``xp`` of the generic helpers: NumPy or jax.numpy."""
 
 
+def _traced_once(*static_argnames):
+    """Trace an ``xp``-generic kernel once per signature when ``xp`` is jax.numpy.
+
+    Each call of the kernel inside a trace is then one call of a cached program (``jax.jit``;
+    its derivatives and batches are cached with it) instead of its hundred jax.numpy calls
+    traced again: the halfshaft's kernels are called at every level of a solve and of its
+    derivatives, and retracing them was most of a first solve's trace time. With NumPy
+    (``xp`` = numpy) the kernel runs as written.
+    """
+
+    def wrap(kernel):
+        jitted = jax.jit(kernel, static_argnames=("xp", *static_argnames))
+
+        @functools.wraps(kernel)
+        def call(xp, *args, **kwargs):
+            return (jitted if xp is jnp else kernel)(xp, *args, **kwargs)
+
+        return call
+
+    return wrap
+
+
 def _sinc(xp, y, sin_y):
     """sin(y)/y from y and sin(y); a Taylor branch near 0 keeps values and derivatives exact."""
     small = xp.abs(y) < 1e-4
@@ -67,6 +89,7 @@ def _sinc(xp, y, sin_y):
 HALF_ANGLE_LIMIT = 1.0
 
 
+@_traced_once()
 def half_angle_sincos(xp: ModuleType, x: XpArray) -> tuple[XpArray, XpArray]:
     """(sin x, cos x) of the half articulation angle x = γ0/2 by Taylor polynomials to x¹⁹, x¹⁸.
 
@@ -90,6 +113,7 @@ def _working_arrays(layout, theta):
     return tuple(jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0, theta))
 
 
+@_traced_once()
 def layout_constants(
     xp: ModuleType, R: XpArray, l: XpArray, gamma0: XpArray, theta: XpArray
 ) -> dict[str, XpArray]:
@@ -112,6 +136,7 @@ def layout_constants(
     )
 
 
+@_traced_once("small_angles", "row_scaled", "with_theta")
 def scaled_system(
     xp: ModuleType,
     consts: dict[str, XpArray],
@@ -119,7 +144,8 @@ def scaled_system(
     v: XpArray,
     small_angles: bool = False,
     row_scaled: bool = False,
-) -> tuple[tuple[XpArray, XpArray], tuple[tuple[XpArray, XpArray], tuple[XpArray, XpArray]]]:
+    with_theta: bool = False,
+) -> Any:
     """Scaled residual (g1, g2) and closed-form Jacobian of the pair at (Δ, v).
 
     Every angle is built from two sine–cosine pairs, of Δ/2 and of
@@ -132,7 +158,9 @@ def scaled_system(
     iteration is pure arithmetic (for |Δ|/2, |γ − γ0|/2 ≤ ``POLYNOMIAL_LIMIT`` only).
     With ``row_scaled`` the first row (g1, j11, j12) is returned multiplied by
     cos²γ: the same Newton step, with no division left but the determinant's
-    (XLA then fuses a whole step into one loop).
+    (XLA then fuses a whole step into one loop). With ``with_theta`` a third pair
+    follows: (∂g1/∂θ, ∂g2/∂θ) at fixed (Δ, v), in closed form (θ enters only through
+    3ψ/2 = 3(θ − Δ)/2, so ∂(sin 3ψ)/∂θ = 3 cos 3ψ and ∂(sin²(3ψ/2))/∂θ = (3/2) sin 3ψ).
     """
     half0, s0, c0, k, H = (consts[n] for n in ("half0", "s0", "c0", "k", "H"))
     y = half0 * v
@@ -173,11 +201,15 @@ def scaled_system(
         g1 = -H * sin_delta * cos2_g - kq * sin3 * cos_g
         j11 = -H * cos_delta * cos2_g + 3.0 * kq * cos3 * cos_g
         j12 = -k * sin3 * (dq_dv * cos_g + q * 2.0 * half0 * sin_g)
+        g1_theta = -3.0 * kq * cos3 * cos_g
     else:
         kq_cg = kq / cos_g
         g1 = -H * sin_delta - kq_cg * sin3
         j11 = -H * cos_delta + 3.0 * kq_cg * cos3
         j12 = -k * sin3 / cos_g * (dq_dv + q * 2.0 * half0 * sin_g / cos_g)
+        g1_theta = -3.0 * kq_cg * cos3
+    if with_theta:
+        return (g1, g2), ((j11, j12), (j21, j22)), (g1_theta, -3.0 * kq * sin3)
     return (g1, g2), ((j11, j12), (j21, j22))
 
 
@@ -409,21 +441,31 @@ def _implicit_solver(rtol, max_steps):
     def solve_jvp(primals, tangents):
         out = solve(*primals)
         delta, v = out[:2]
-        # Only the inputs being differentiated enter the JVP (the others carry symbolic zeros).
-        active = [i for i, t in enumerate(tangents) if not isinstance(t, SymbolicZero)]
+        # Only the layout's fields being differentiated enter the JVP (the others carry
+        # symbolic zeros); θ's part is the closed-form ∂g/∂θ, so that the θ-rates (every
+        # revolution's) differentiate the pair once, and their layout derivatives twice
+        # (a JVP of a JVP of the pair was most of the programs that need them).
+        active = [i for i, t in enumerate(tangents[:3]) if not isinstance(t, SymbolicZero)]
 
         def system_at_solution(*moving):
             args = list(primals)
             for i, value in zip(active, moving, strict=False):
                 args[i] = value
             consts = layout_constants(jnp, *args)
-            return scaled_system(jnp, consts, delta, v, True, row_scaled=True)
+            return scaled_system(jnp, consts, delta, v, True, row_scaled=True, with_theta=True)
 
-        (_, jacobian), (dg, _) = jax.jvp(
-            system_at_solution,
-            tuple(primals[i] for i in active),
-            tuple(tangents[i] for i in active),
-        )
+        if active:
+            (_, jacobian, g_theta), (dg, _, _) = jax.jvp(
+                system_at_solution,
+                tuple(primals[i] for i in active),
+                tuple(tangents[i] for i in active),
+            )
+        else:
+            _, jacobian, g_theta = system_at_solution()
+            dg = (0.0, 0.0)
+        d_theta = tangents[3]
+        if not isinstance(d_theta, SymbolicZero):
+            dg = tuple(d + g * d_theta for d, g in zip(dg, g_theta, strict=True))
         # The polynomial sines hold inside their range, which holds every solution of the layout
         # domain (|Δ/2| ≤ 0.03 there): beyond it the derivatives are NaN, never a wrong number.
         valid = _in_polynomial_range(layout_constants(jnp, *primals), delta, v)
