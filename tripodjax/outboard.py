@@ -32,7 +32,13 @@ law gives 6.0° from its 140 772 km), shock + 8.0° (as the tripod's), shock −
 
 The sheet's 1547 h is not the tripod's 2148 h scaled by (M_d/M_d,tripod)³
 (that gives 1282 h, 17 % less): the sheet's rating for a ball joint is not
-printed. Here one rating (500 h at 730 rpm) serves both joints.
+printed. Here one rating (500 h at 730 rpm) serves both joints. The chain's
+reading of 4.2.1–4.2.3 (time shares, the unclaimed revolutions at the mean
+speed) gives this joint 1520 h at 0° (−1.7 %), and those hours × the sheet's
+V_ave (4.2.3 with revolution shares) its km within 0.3 %; but the same reading
+puts the tripod's column at 2525 h (+17.5 %), whose 2148 h is revolution shares
+read as time shares (−0.5 %). No one reading gives both columns (docs/physics.md):
+the library keeps the chain's for both.
 """
 
 import dataclasses
