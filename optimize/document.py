@@ -1086,11 +1086,14 @@ READINGS = (
     ),
     (
         ("outboard", "reading"),
-        "outboard joint's Hertz coefficient μν",
+        "outboard joint's Hertz coefficient μν and life in km",
         {
-            "consistent": "μν from exact Hertz theory (elliptic integrals)",
+            "consistent": "μν from exact Hertz theory (elliptic integrals); km = hours × the "
+            "time-weighted mean vehicle speed, the distance the spectrum's revolutions roll",
             "workbook": "μν from the sheet's table at cos τ truncated to 10⁻³ (reproduces the "
-            "sheet's M_s, M_d, M_sd within 0.3 %; the exact μν gives 3.8 % more)",
+            "sheet's M_s, M_d, M_sd within 0.3 %; the exact μν gives 3.8 % more); km = hours × "
+            "the revolution-weighted mean vehicle speed, the sheet's V_ave (its km per working "
+            "condition and combined within 0.3 %)",
         },
     ),
     (

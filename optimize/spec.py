@@ -157,7 +157,9 @@ C_s = 1.1                   # safety coefficient on the pressure
 pressure_angle_deg = 45.0   # ε
 oblique_angle_deg = 0.0     # the tracks' oblique angle ζ
 tolerance = 0.15            # tolerance on the life's calculation spread (life × (1 + tolerance))
-reading = "consistent"      # "consistent" (exact Hertz μν) or "workbook" (the sheet's table)
+reading = "consistent"      # "consistent" (exact Hertz μν, km = the distance rolled) or
+                            # "workbook" (the sheet's μν table, km = hours × the
+                            # revolution-weighted mean vehicle speed; docs/physics.md)
 
 [outboard.conditions]
 # The outboard joint's working conditions (fig. 4.3.10): angles and shares of the mileage.

@@ -88,24 +88,130 @@ def test_working_conditions_from_the_0_degree_life():
     assert round(100 * P.sum()) == 172
 
 
-def test_life_from_the_vehicle_and_its_gap():
-    """The chain's 0° life is 17.9 % below the sheet's 202 617 km (see tripodjax.outboard)."""
-    modes = workbook_modes()
-    spectrum = vehicle.load_spectrum(vehicle.load_cycles(workbook_vehicle(), modes, 100_000.0))
+PRINTED = [0, 1, 2, 4]  # the conditions whose km the sheet prints (shock + is illegible)
+PRINTED_KM = [140_772.0, L0_KM, L0_KM, 100_128.0]
+COMBINED_KM = 117_671.0
+
+
+def _sheet_spectrum():
+    modes = workbook_modes(sheet=True)
+    cycles = vehicle.load_cycles(workbook_vehicle(), modes, 100_000.0)
+    return cycles, vehicle.load_spectrum(cycles)
+
+
+def test_the_workbook_reading_gives_the_sheets_km_from_the_vehicle():
+    """Fig. 4.3.10's second column from the vehicle's inputs, within 0.3 %: km = hours × V_ave.
+
+    V_ave is the revolution-weighted mean vehicle speed of the spectrum (4.2.3 with revolution
+    shares): 115.6 km/h, the sheet prints 113.9 (+1.5 %); the chain's hours are 1.7 % under the
+    sheet's 1779 h at 0°, so the km are −0.2 % (0°), −0.2 % (static trim), −0.3 % (shock −) and
+    −0.3 % combined.
+    """
+    cycles, spectrum = _sheet_spectrum()
     conditions = life.WorkingConditions(np.radians(ANGLES_DEG), SHARES)
     joint = outboard.FixedJoint(**JOINT)
     out = outboard.joint_life(joint, spectrum, conditions, reading="workbook")
-    at_0 = float(out.km_per_condition[1])
-    assert at_0 / L0_KM - 1 == pytest.approx(-0.179, abs=0.005)
+    # V_ave by hand from the load cycles: revolution shares × vehicle speeds (the unclaimed
+    # revolutions run at the revolution-weighted mean speed, so they do not change it).
+    r = np.asarray(cycles.share).ravel()
+    v_ave = float(np.sum(r * np.asarray(cycles.vehicle_speed).ravel()) / np.sum(r))
+    assert float(outboard.revolution_mean_speed(spectrum)) == pytest.approx(v_ave, rel=1e-12)
+    assert v_ave == pytest.approx(115.61, abs=0.01)
+    np.testing.assert_allclose(out.km_per_condition, out.hours_per_condition * v_ave, rtol=1e-12)
+    assert float(out.km) == pytest.approx(float(out.hours) * v_ave, rel=1e-12)
+    # The sheet's printed km, every one within 0.3 % (−0.2 … −0.3 %).
+    km = np.asarray(out.km_per_condition)
+    np.testing.assert_allclose(km[PRINTED], PRINTED_KM, rtol=3e-3)
+    np.testing.assert_allclose(
+        km[PRINTED] / PRINTED_KM - 1, [-0.0022, -0.0023, -0.0023, -0.0028], atol=2e-4
+    )
+    assert float(out.km) == pytest.approx(COMBINED_KM, rel=3e-3)
+    assert float(out.km) / COMBINED_KM - 1 == pytest.approx(-0.0026, abs=2e-4)
+    # The hours are the chain's: 1748.5 h at 0° with the tolerance, the sheet's 1779 h −1.7 %.
+    assert float(out.hours_per_condition[1]) / 1779 - 1 == pytest.approx(-0.017, abs=1e-3)
     # The per-condition lives follow the 0° life by the angle law, combined by Miner's rule.
     g = np.asarray(life.angle_factor(np.radians(ANGLES_DEG)))
-    np.testing.assert_allclose(out.km_per_condition, at_0 * g, rtol=1e-12)
-    assert float(out.km) == pytest.approx(1 / np.sum(SHARES / (at_0 * g)), rel=1e-12)
+    np.testing.assert_allclose(out.km_per_condition, km[1] * g, rtol=1e-12)
+    assert float(out.km) == pytest.approx(1 / np.sum(SHARES / (km[1] * g)), rel=1e-12)
     # The tolerance multiplies every life by 1.15.
     plain = outboard.joint_life(
         outboard.FixedJoint(**JOINT, tolerance=0.0), spectrum, conditions, reading="workbook"
     )
     assert float(out.km) / float(plain.km) == pytest.approx(1.15, rel=1e-12)
+
+
+def test_the_consistent_reading_rolls_the_spectrums_distance():
+    """Exact μν and km = hours × Σ a_i V_i (time shares): 184 266 km at 0°, 9.1 % under the sheet.
+
+    With the table's μν and this km the 0° life is 166 250 km (−18.0 %, the gap before the
+    workbook reading took the sheet's V_ave): the table's μν takes 9.8 %, the time-weighted
+    speed (95.1 against V_ave 115.6 km/h) 17.8 %.
+    """
+    _, spectrum = _sheet_spectrum()
+    conditions = life.WorkingConditions(np.radians(ANGLES_DEG), SHARES)
+    joint = outboard.FixedJoint(**JOINT)
+    out = outboard.joint_life(joint, spectrum, conditions)
+    a, V = np.asarray(spectrum.share), np.asarray(spectrum.vehicle_speed)
+    v_m = float(np.sum(a * V))  # time-weighted: the distance the revolutions roll per hour
+    assert v_m == pytest.approx(95.08, abs=0.01)
+    np.testing.assert_allclose(out.km_per_condition, out.hours_per_condition * v_m, rtol=1e-12)
+    km = np.asarray(out.km_per_condition)
+    assert km[1] / L0_KM - 1 == pytest.approx(-0.0906, abs=1e-3)
+    assert float(out.km) / COMBINED_KM - 1 == pytest.approx(-0.0908, abs=1e-3)
+    g = np.asarray(life.angle_factor(np.radians(ANGLES_DEG)))
+    np.testing.assert_allclose(km, km[1] * g, rtol=1e-12)
+    table = outboard.joint_life(joint, spectrum, conditions, reading="workbook")
+    assert float(table.hours_per_condition[1]) * v_m / L0_KM - 1 == pytest.approx(-0.1795, abs=1e-3)
+
+
+def test_which_reading_gives_which_column_of_the_sheet():
+    """Fig. 4.3.10's 0° lives: 2148 h (tripod) and 1547 h (outboard), both × V_ave 113.9 km/h.
+
+    Two readings of 4.2.1–4.2.3 (the sheet's modes; M_d 1507 and the module's 1272.6 N·m):
+
+    - the chain's (time shares, the unclaimed revolutions at the mean speed; km = revolutions ×
+      2π r): tripod 2525 h (+17.5 %) and 240 059 km (−1.8 %), outboard 1520 h (−1.7 %) and
+      166 250 km (−18.0 %, the table's μν);
+    - revolution shares read as time shares in 4.2.1 (the sheet's tripod): tripod 2138 h
+      (−0.5 %), outboard 1287 h (−16.8 %).
+
+    The outboard's hours × the sheet's V_ave (4.2.3 with revolution shares: 115.6 km/h, the
+    sheet 113.9) give its 202 617 km within 0.3 % and every working condition and the
+    combined life with it (the outboard's ``reading="workbook"``), but the same conversion puts
+    the tripod at +19 %: the sheet's two columns are not one reading. Their hours are in the ratio 1547/2148 = 0.720, where any one
+    reading of 4.2.2 on one spectrum gives (M_d,out/M_d,tripod)³ = 0.602 (0.597 with the
+    printed 1269): one column carries a factor of 1.196 that the sheet does not print.
+    """
+    modes = workbook_modes(sheet=True)
+    cycles = vehicle.load_cycles(workbook_vehicle(), modes, 100_000.0)
+    spectrum = vehicle.load_spectrum(cycles)
+    conditions = life.WorkingConditions(np.radians(ANGLES_DEG), SHARES)
+    joint = outboard.FixedJoint(**JOINT)
+    out = outboard.joint_life(joint, spectrum, conditions, reading="workbook")
+    M_d = float(outboard.capacities(joint, reading="workbook").M_d)
+    hours = float(out.hours_per_condition[1]) / 1.15  # without the tolerance
+    tripod_hours = float(life.life_hours(1507.0, spectrum.torque, spectrum.speed, spectrum.share))
+    assert hours / 1547 - 1 == pytest.approx(-0.017, abs=1e-3)
+    assert tripod_hours / 2148 - 1 == pytest.approx(0.175, abs=1e-3)
+    # Revolution shares as time shares (the tripod column's 2148 h, test_vehicle.py).
+    r = np.asarray(cycles.share).ravel()
+    n = np.asarray(cycles.shaft_speed).ravel()
+    M = np.asarray(cycles.working_torque).ravel() / 1.1
+    by_revolutions = [365000 / np.sum(r * n * (M / m) ** 3) for m in (1507.0, M_d)]
+    np.testing.assert_allclose(
+        np.array(by_revolutions) / [2148, 1547] - 1, [-0.005, -0.168], atol=1e-3
+    )
+    # km = L_h × V_ave, V_ave the revolution-weighted mean speed (4.2.3 with revolution shares).
+    v_ave = float(np.sum(r * np.asarray(cycles.vehicle_speed).ravel()) / np.sum(r))
+    assert v_ave / 113.9 - 1 == pytest.approx(0.015, abs=1e-3)
+    sheet_km = np.asarray(out.hours_per_condition) * v_ave  # the printed ones (shock + is not)
+    np.testing.assert_allclose(out.km_per_condition, sheet_km, rtol=1e-12)  # the workbook reading
+    np.testing.assert_allclose(sheet_km[[0, 1, 2, 4]], [140_772, L0_KM, L0_KM, 100_128], rtol=3e-3)
+    assert float(out.hours) * v_ave == pytest.approx(117_671.0, rel=3e-3)
+    assert tripod_hours * v_ave / 244_574 - 1 == pytest.approx(0.193, abs=1e-3)
+    # The columns' ratio against the cube of their capacities'.
+    assert (1547 / 2148) / (M_d / 1507) ** 3 == pytest.approx(1.196, abs=1e-3)
+    assert (1547 / 2148) / (1269 / 1507) ** 3 == pytest.approx(1.206, abs=1e-3)
 
 
 def test_derivatives_and_float32():
@@ -126,6 +232,50 @@ def test_derivatives_and_float32():
     m_s32 = jax.jit(lambda j: outboard.capacities(j).M_s)(joint32)
     assert m_s32.dtype == np.float32
     assert float(m_s32) == pytest.approx(float(m_s(*x)), rel=1e-4)
+
+
+@pytest.mark.parametrize("reading", outboard.READINGS)
+def test_the_life_in_km_has_finite_derivatives(reading):
+    """d km / d(d), d km / d(vehicle speeds × s) against central differences, both readings."""
+    spectrum = life.LoadSpectrum(
+        torque=np.array([1154.0, 350.0, 0.0]),
+        speed=np.array([100.0, 1000.0, 600.0]),
+        vehicle_speed=np.array([28.0, 90.0, 60.0]),
+        share=np.array([0.3, 0.45, 0.25]),
+    )
+    conditions = life.WorkingConditions(np.radians(ANGLES_DEG), SHARES)
+
+    @jax.jit
+    def km(d, s):
+        joint = outboard.FixedJoint(**{**JOINT, "d": d})
+        scaled = life.LoadSpectrum(
+            spectrum.torque, spectrum.speed, s * spectrum.vehicle_speed, spectrum.share
+        )
+        return outboard.joint_life(joint, scaled, conditions, reading=reading).km
+
+    x = (18.256, 1.0)
+    grads = jax.grad(km, argnums=(0, 1))(*x)
+    assert all(np.isfinite(float(g)) for g in grads)
+    assert float(grads[1]) == pytest.approx(float(km(*x)), rel=1e-9)  # km ∝ the speeds
+    for i, h in enumerate((1e-5, 1e-6)):
+        plus, minus = list(x), list(x)
+        plus[i] += h
+        minus[i] -= h
+        fd = (float(km(*plus)) - float(km(*minus))) / (2 * h)
+        assert float(grads[i]) == pytest.approx(fd, rel=1e-6), i
+
+
+def test_a_spectrum_without_revolutions_lives_for_ever_in_both_readings():
+    spectrum = life.LoadSpectrum(
+        torque=np.array([100.0]), speed=np.array([0.0]), vehicle_speed=np.array([0.0]), share=[1.0]
+    )
+    conditions = life.WorkingConditions(np.radians(ANGLES_DEG), SHARES)
+    assert float(outboard.revolution_mean_speed(spectrum)) == 0.0
+    for reading in outboard.READINGS:
+        out = outboard.joint_life(
+            outboard.FixedJoint(**JOINT), spectrum, conditions, reading=reading
+        )
+        assert float(out.km) == math.inf and np.all(np.isinf(out.km_per_condition)), reading
 
 
 @pytest.mark.parametrize(

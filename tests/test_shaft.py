@@ -2,7 +2,8 @@
 
 Expected numbers are the sheet's printed ones (the outboard joint's stem, "OCVJ stem":
 Øe 30.685 mm, h 2.5 mm, t 3.5 mm, core 690 MPa, surface 2180 MPa, −10 % at h, q 1.6),
-computed from the vehicle inputs alone (tests/test_vehicle.py's workbook vehicle).
+computed from the vehicle inputs alone (tests/test_vehicle.py's workbook vehicle and the
+sheet's modes of fig. 4.3.4, whose sport column also runs reverse at T_ave).
 """
 
 import math
@@ -51,12 +52,20 @@ SHEET_BRAKE = [
     (679, 207, 126),
 ]
 # Legible cycle counts [thousands] as (mode, gear, condition, count): modes sport 0,
-# intercity 1, city 2; conditions T_max 1, P_max 2, brake 3. Left out, with the reason:
-# the sport brake rows of gears 1–6 (all 2.1 % below the rule: the sheet's sport use
-# sums to 73.49 %, the table as read to 73.08 %), the 1st and 2nd gears' P_max rows
-# (0.14 and 1.23 % are rounded: 1.8 % and 0.4 % off), 5th gear city brake (reads
-# 20.375 for 20.7) and reverse's "3,329" brake row (misplaced).
+# intercity 1, city 2; conditions T_ave 0, T_max 1, P_max 2, brake 3 (the OCR's row labels
+# are often shifted; a row is placed by its torque, its event rate and its count). Left out,
+# with the reason: the 1st and 2nd gears' P_max rows (0.14 and 1.23 % are rounded: 1.8 % and
+# 0.4 % off) and 5th gear city brake (reads 20.375 for 20.7). The sport rows of the brake and
+# reverse's sport T_ave row ("*,337": its first digit is illegible; fig. 4.3.4 prints 0.40 %,
+# 103 thousand revolutions) need the sheet's sport column (tests/test_vehicle.py).
 SHEET_COUNTS = [
+    (0, 0, 3, 164.176),
+    (0, 1, 3, 18.132),
+    (0, 2, 3, 37.758),
+    (0, 4, 3, 25.375),
+    (0, 5, 3, 15.979),
+    (0, 6, 3, 3.329),
+    (0, 6, 0, 4.337),
     (1, 0, 1, 3.465),
     (2, 0, 1, 13.858),
     (1, 0, 3, 33.513),
@@ -101,7 +110,7 @@ SHEET_DAMAGE = (0.0835, 0.122)
 
 @pytest.fixture(scope="module")
 def chain():
-    modes = workbook_modes()
+    modes = workbook_modes(sheet=True)
     cycles = vehicle.load_cycles(workbook_vehicle(), modes, 100_000.0)
     return cycles, modes
 
@@ -178,19 +187,49 @@ def test_fig_4_3_7_cycle_counts(sheet):
 
 
 def test_fig_4_3_7_damage_sums(sheet):
-    """Miner's sums 0.0784 and 0.1161 against the printed 0.0835 and 0.122: −6.1 % and −4.8 %.
+    """Miner's sums 0.0826 and 0.1202 against the printed 0.0835 and 0.122: −1.1 % and −1.5 %.
 
-    The remaining gap: reverse's N is 1.35·10⁶ here, printed "1" (10⁶): with 10⁶ there the
-    sums would be 0.0818 and 0.1192 (−2.1 %, −2.3 %); the rest is in cycles that the sheet's
-    legible rows do not show (its sport brake rows are even 2 % fewer than here).
+    The remaining gap is not in the legible rows (every count within 0.5 %, every N within its
+    printing). Not closed by: the sheet's 1154 N·m in the 2nd gear's sport rows (−1.5 %,
+    −1.5 %: a larger mean raises σ_lim more than σ_a), every N rounded to its printed 10⁶
+    (+4.2 %, −0.4 %), reverse's N = 10⁶ as printed (+4.7 %, +2.2 %; the line gives 1.35 and
+    1.31·10⁶).
     """
     _, check = sheet
     damage = np.asarray(check.damage)
-    np.testing.assert_allclose(damage, SHEET_DAMAGE, rtol=0.065)
-    np.testing.assert_allclose(damage / SHEET_DAMAGE - 1, [-0.061, -0.048], atol=0.005)
+    np.testing.assert_allclose(damage, SHEET_DAMAGE, rtol=0.02)
+    np.testing.assert_allclose(damage / SHEET_DAMAGE - 1, [-0.011, -0.015], atol=0.001)
     assert bool(check.passed)
     by_hand = np.sum(np.asarray(check.damage_per_row), axis=(1, 2, 3))
     np.testing.assert_allclose(damage, by_hand, rtol=1e-12)
+
+
+def test_without_the_sport_reverse_rows_the_sums_fall_short(sheet):
+    """With one gear-use table for all modes (no sport T_ave in reverse): −6.1 % and −4.8 %.
+
+    The sport column's 0.40 % in reverse at T_ave adds 4.337 thousand cycles of 750 ↔ 679 N·m
+    and raises the sport brake rows' share of reverse (3.329 thousand, was 1.797); its larger
+    total (73.46 %) lowers every other sport brake row 2.1 %, as the sheet prints them.
+    """
+    _, check = sheet
+    modes = workbook_modes()
+    cycles = vehicle.load_cycles(workbook_vehicle(), modes, 100_000.0)
+    rows = shaft.fatigue_cycles(cycles, modes, reading="workbook")
+    one_table = shaft.fatigue_check(
+        shaft.Section(**STEM), shaft.Material(**MATERIAL), rows, reading="workbook"
+    )
+    np.testing.assert_allclose(
+        np.asarray(one_table.damage) / SHEET_DAMAGE - 1, [-0.061, -0.048], atol=0.001
+    )
+    assert float(rows.count[0, 6, 3]) / 1e3 == pytest.approx(1.797, rel=2e-3)
+    assert float(rows.count[0, 2, 3]) / 1e3 == pytest.approx(37.758 * 1.0198, rel=2e-3)
+    # The reverse rows alone make the difference at both radii.
+    extra = np.asarray(check.damage) - np.asarray(one_table.damage)
+    reverse = np.sum(
+        np.asarray(check.damage_per_row)[:, :, 6] - np.asarray(one_table.damage_per_row)[:, :, 6],
+        axis=(1, 2),
+    )
+    assert np.all(reverse > extra) and np.all(extra > 0)
 
 
 def test_consistent_reading_differs_only_where_stated(chain, sheet):

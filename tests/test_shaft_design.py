@@ -178,8 +178,9 @@ def test_the_constraints_no_free_variable_changes_are_named(spec):
     fixed = problem.fixed_constraints(spec.structure)  # the outboard stem's diameter free
     assert f"shaft_static[{STEM}]" not in fixed and f"shaft_fatigue[{STEM}]" not in fixed
     assert set(fixed) == set(halfshaft) - {f"shaft_static[{STEM}]", f"shaft_fatigue[{STEM}]"}
-    # An infeasible run names a violated constraint that no free variable changes.
-    margins = {"life": 0.1, "outboard_life": -0.0343, f"shaft_fatigue[{STEM}]": -0.01}
+    # An infeasible run names a violated constraint that no free variable changes (the
+    # outboard's 117 001 km with the workbook reading against a required 120 000 km: ln = -0.0253).
+    margins = {"life": 0.1, "outboard_life": -0.0253, f"shaft_fatigue[{STEM}]": -0.01}
     result = SimpleNamespace(
         result="successful",
         feasible=False,
@@ -190,7 +191,7 @@ def test_the_constraints_no_free_variable_changes_are_named(spec):
     message, _ = _verdict(result)
     assert message == (
         "infeasible: no start reached feasibility; smallest violations: outboard_life (margin "
-        f"-0.0343; no free variable changes it), shaft_fatigue[{STEM}] (margin -0.01)"
+        f"-0.0253; no free variable changes it), shaft_fatigue[{STEM}] (margin -0.01)"
     )
 
 

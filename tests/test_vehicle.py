@@ -11,6 +11,7 @@ from tripodjax import life, vehicle
 RATIOS = [13.128, 7.931, 5.367, 4.181, 3.336, 2.788]
 T_MAX_USE = [1.62, 4.55, 11.00, 11.93, 9.60, 7.04, 0.40]  # % of revolutions, 1st–6th, reverse
 P_MAX_USE = [0.14, 1.23, 4.50, 7.29, 7.20, 6.53, 0.05]
+SPORT_REVERSE_T_AVE_USE = 0.40  # % of the sport revolutions, fig. 4.3.4's sport column only
 
 
 def workbook_vehicle(**changes):
@@ -33,10 +34,20 @@ def workbook_vehicle(**changes):
     return vehicle.Vehicle(**{**fields, **changes})
 
 
-def workbook_modes():
+def workbook_modes(sheet=False):
+    """Sport, intercity, city (50/10/40 %), with one gear-use table for all three (fig. 4.3.11).
+
+    ``sheet=True``: the sheet's own modes as fig. 4.3.4 prints them, where the sport column
+    also runs reverse at T_ave for 0.40 % of its revolutions ("C_ave 750 0,40% 0,20% 103":
+    relative use, absolute use, thousands of revolutions), so that its reverse gear is used
+    0.85 % (intercity and city 0.45 %) and its total 73.46 % (73.06 %). Fig. 4.3.7 counts
+    those cycles (tests/test_shaft.py).
+    """
     use = np.zeros((3, 7, 4))
     use[:, :, 1] = np.array(T_MAX_USE) / 100
     use[:, :, 2] = np.array(P_MAX_USE) / 100
+    if sheet:
+        use[0, -1, 0] = SPORT_REVERSE_T_AVE_USE / 100
     return vehicle.DrivingModes(weight=np.array([0.5, 0.1, 0.4]), use=use)
 
 
@@ -63,6 +74,25 @@ def test_the_chain_reproduces_the_printed_numbers(cycles):
     assert float(c.M_max_backward) == pytest.approx(750.0, rel=5e-3)
     # Working torque: the adhesion limit wherever the engine can give more (every case here).
     np.testing.assert_allclose(c.working_torque[..., 1:3], c.adhesion_limit[..., 1:3], rtol=1e-12)
+
+
+def test_the_sheets_sport_column_runs_reverse_at_the_mean_torque():
+    """Fig. 4.3.4, sport column, reverse: "C_ave 750 0,40% 0,20% 103", gear use 0.85 %.
+
+    The other columns print 0.00 % there and 0.45 % for the gear; the totals are 73.46 % for
+    sport and 73.06 % for intercity and city (the tables as read sum to 73.48 % and 73.08 %).
+    """
+    modes = workbook_modes(sheet=True)
+    c = vehicle.load_cycles(workbook_vehicle(), modes, 100_000.0)
+    assert float(c.working_torque[0, -1, 0]) == pytest.approx(750.0, rel=5e-3)
+    assert float(c.share[0, -1, 0]) == pytest.approx(0.0020, rel=1e-9)  # absolute use 0.20 %
+    assert float(c.revolutions[0, -1, 0]) / 1e3 == pytest.approx(103.0, abs=0.5)
+    use = np.asarray(modes.use)
+    np.testing.assert_allclose(100 * use[:, -1, :3].sum(axis=-1), [0.85, 0.45, 0.45], rtol=1e-9)
+    np.testing.assert_allclose(100 * use.sum(axis=(1, 2)), [73.46, 73.06, 73.06], atol=0.03)
+    # Only that cell differs from the one-table modes.
+    differs = use != np.asarray(workbook_modes().use)
+    assert differs.sum() == 1 and differs[0, -1, 0]
 
 
 def test_relations_by_hand(cycles):

@@ -32,7 +32,24 @@ law gives 6.0° from its 140 772 km), shock + 8.0° (as the tripod's), shock −
 
 The sheet's 1547 h is not the tripod's 2148 h scaled by (M_d/M_d,tripod)³
 (that gives 1282 h, 17 % less): the sheet's rating for a ball joint is not
-printed. Here one rating (500 h at 730 rpm) serves both joints.
+printed. Here one rating (500 h at 730 rpm) serves both joints. The chain's
+reading of 4.2.1–4.2.3 (time shares, the unclaimed revolutions at the mean
+speed) gives this joint 1520 h at 0° (−1.7 %). The two readings of its km
+(``reading`` of [`joint_life`][tripodjax.outboard.joint_life]):
+
+- ``"consistent"``: km = hours × the time-weighted mean vehicle speed Σ a_i V_i
+  (4.2.3), the distance the spectrum's revolutions roll (revolutions × 2π r),
+  and the exact μν: 184 266 km at 0° (−9.1 %; 166 250 km, −18.0 %, with the
+  table's μν);
+- ``"workbook"``: km = hours × the revolution-weighted mean vehicle speed V_ave =
+  Σ a_i n_i V_i / Σ a_i n_i ([`revolution_mean_speed`][tripodjax.outboard.revolution_mean_speed];
+  the sheet's 113.9 km/h, 115.6 here): 202 143 km at 0° (−0.2 %), every printed
+  working condition and the combined life within 0.3 % (the hours' −1.7 % and the
+  speed's +1.5 % nearly cancel).
+
+The same conversion puts the tripod's column at +19 %, whose km the chain's own
+reading gives within 1.8 %: the sheet's two columns are not computed the same
+way (docs/physics.md), and the workbook reading here is the outboard column's.
 """
 
 import dataclasses
@@ -59,6 +76,7 @@ __all__ = [
     "capacities",
     "joint_life",
     "min_ball_diameter",
+    "revolution_mean_speed",
     "static_safety",
 ]
 
@@ -218,8 +236,21 @@ def joint_life(
     """The joint's life (hours and km), ×(1 + tol), under the spectrum and its working conditions.
 
     [`life.joint_life`][tripodjax.life.joint_life] with the joint's numbers;
-    every life (combined and per condition) is multiplied by 1 + tolerance
-    (and, with ``reading="workbook"``, by the table's (M_d/M_d,exact)³).
+    every life (combined and per condition) is multiplied by 1 + tolerance.
+    ``reading``:
+
+    - ``"consistent"`` (default): exact Hertz μν, and km = hours × V_m with
+      V_m = Σ a_i V_i the time-weighted mean vehicle speed of 4.2.3 (a_i the
+      spectrum's time shares), i.e. the distance the spectrum's revolutions roll
+      (revolutions × 2π r for a spectrum built from the vehicle);
+    - ``"workbook"``: the sheet's (fig. 4.3.10, second column): μν at cos τ
+      truncated to 10⁻³, so every life × (M_d/M_d,exact)³, and km = hours ×
+      V_ave with V_ave = Σ a_i n_i V_i / Σ a_i n_i the *revolution*-weighted mean
+      vehicle speed (4.2.3 with revolution shares; 115.6 km/h for the workbook's
+      vehicle, the sheet prints 113.9). It gives the sheet's km per working
+      condition and combined within 0.3 % from the vehicle's inputs; the hours
+      stay the chain's (1.7 % under the sheet's 1547 h at 0°). The tripod column of
+      the same sheet is not this reading (docs/physics.md).
     """
     check_instance("joint", joint, FixedJoint, "an outboard.FixedJoint")
     table = _table_factor(joint, reading)
@@ -233,10 +264,42 @@ def joint_life(
         **_common(joint, n_balls),
     )
     factor = (1.0 + jnp.asarray(joint.tolerance)) * table**3
+    hours = out.hours * factor
+    hours_per_condition = out.hours_per_condition * factor
+    if reading == "consistent":
+        km, km_per_condition = out.km * factor, out.km_per_condition * factor
+    else:
+        v_ave = revolution_mean_speed(spectrum)
+        km = _in_km(hours, out.km, v_ave)
+        km_per_condition = _in_km(hours_per_condition, out.km_per_condition, v_ave)
     return dataclasses.replace(
         out,
-        hours=out.hours * factor,
-        km=out.km * factor,
-        hours_per_condition=out.hours_per_condition * factor,
-        km_per_condition=out.km_per_condition * factor,
+        hours=hours,
+        km=km,
+        hours_per_condition=hours_per_condition,
+        km_per_condition=km_per_condition,
     )
+
+
+def revolution_mean_speed(spectrum: life.LoadSpectrum) -> jax.Array:
+    """V_ave = Σ a_i n_i V_i / Σ a_i n_i [km/h]: the spectrum's revolution-weighted mean vehicle speed.
+
+    The workbook's average speed (fig. 4.3.10: 113.9 km/h; 115.6 for the workbook's
+    vehicle), by which ``joint_life(..., reading="workbook")`` converts hours into km:
+    4.2.3's V_m = Σ a_i V_i with the revolution shares a_i n_i / Σ a_k n_k in place of
+    the time shares a_i. Always ≥ the time-weighted mean where the vehicle speed rises
+    with the joint's (95.1 km/h for the same vehicle). A spectrum whose joint never
+    turns (Σ a_i n_i = 0) gives the time-weighted mean Σ a_i V_i.
+    """
+    check_instance("spectrum", spectrum, life.LoadSpectrum, "a life.LoadSpectrum")
+    a, n, V = (jnp.asarray(x) for x in (spectrum.share, spectrum.speed, spectrum.vehicle_speed))
+    revolutions = jnp.sum(a * n, axis=-1)
+    turning = revolutions > 0
+    by_revolutions = jnp.sum(a * n * V, axis=-1) / jnp.where(turning, revolutions, 1.0)
+    return jnp.where(turning, by_revolutions, jnp.sum(a * V, axis=-1))
+
+
+def _in_km(hours, km, speed):
+    """hours × speed where the life is finite; the chain's km (∞, or NaN) where it is not."""
+    finite = jnp.isfinite(hours)
+    return jnp.where(finite, jnp.where(finite, hours, 0.0) * speed, km)
