@@ -161,7 +161,9 @@ def test_the_default_spec_checks_the_halfshaft_by_default():
     assert out["constraints"]["outboard_life"] == pytest.approx(
         math.log(joint["life_km"] / 100_000.0), rel=1e-12
     )
-    assert out["quantities"]["shaft_damage"] == max(s["damage"] for s in report["sections"])
+    # Two programs (the solve's and the report's) agree to roundoff, not bit for bit.
+    largest = max(s["damage"] for s in report["sections"])
+    assert out["quantities"]["shaft_damage"] == pytest.approx(largest, rel=1e-12)
     assert out["quantities"]["shaft_area"] == pytest.approx(
         sum(math.pi / 4 * s["outer_diameter_mm"] ** 2 for s in report["sections"]), rel=1e-12
     )

@@ -25,3 +25,19 @@ LATENCY_BOUND = {
 
 latency_bound_jit = functools.partial(jax.jit, compiler_options=LATENCY_BOUND)
 """``jax.jit`` with ``LATENCY_BOUND``; takes jax.jit's other arguments (static_argnums, …)."""
+
+
+def latency_bound_at_top_level(fun, **jit_kwargs):
+    """``fun`` compiled with ``LATENCY_BOUND`` where it is called at top level, and as a plain
+    ``jax.jit`` inside another trace (a user's ``jax.jit``, ``vmap``, ``grad``): JAX takes
+    compiler options on a top-level program only, and a nested one is compiled with its caller.
+    ``jit_kwargs``: jax.jit's other arguments (static_argnames, …)."""
+    top_level, nested = latency_bound_jit(fun, **jit_kwargs), jax.jit(fun, **jit_kwargs)
+
+    @functools.wraps(fun)
+    def call(*args, **kwargs):
+        leaves = jax.tree_util.tree_leaves((args, kwargs))
+        traced = any(isinstance(leaf, jax.core.Tracer) for leaf in leaves)
+        return (nested if traced else top_level)(*args, **kwargs)
+
+    return call

@@ -26,7 +26,7 @@ from jax.custom_derivatives import SymbolicZero
 from jax.typing import ArrayLike, DTypeLike
 
 from tripodjax import joint, solvers
-from tripodjax._compile import latency_bound_jit
+from tripodjax._compile import latency_bound_at_top_level
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.halfshaft import (
     HalfshaftSolution,
@@ -491,7 +491,7 @@ def _differentiable(layout):
     ]
 
 
-@functools.partial(latency_bound_jit, static_argnames=("n_theta", "solver"))
+@functools.partial(latency_bound_at_top_level, static_argnames=("n_theta", "solver"))
 def _metrics_and_jacobian(layout, *, n_theta, solver):
     """Every metric of one layout and its Jacobian w.r.t. the layout's floating-point fields.
 
