@@ -47,6 +47,7 @@ sign); the friction power. Torque in N·m, lengths in mm, forces in N, moments
 in N·m, speeds in rad/s and mm/s, power in W.
 """
 
+import dataclasses
 import functools
 import math
 from collections.abc import Iterable
@@ -186,9 +187,9 @@ class RollerForces:
     rolling: jax.Array
 
 
-# Vectors are tuples of their fixed-frame components (x, y, z), each of shape (..., 3) over the
-# rollers: elementwise arithmetic on whole arrays, which XLA vectorises along the angles (a
-# trailing axis of 3 components would not be).
+# Vectors are tuples of their fixed-frame components (x, y, z), each of shape (3, ...): the
+# rollers first, then the batch, elementwise arithmetic on whole arrays that XLA vectorises along
+# the batch's layouts (neither a trailing axis of 3 components nor one of 3 rollers would be).
 
 
 def _cross(a, b):
@@ -200,11 +201,10 @@ def _dot(a, b):
 
 
 def _each_roller(cos, sin):
-    """cos and sin of angle + k·2π/3 (2.4.7), (..., 3), from those of ``angle`` alone."""
-    c, s = cos[..., None], sin[..., None]
-    offsets = np.asarray(joint.ROLLER_OFFSETS, np.float64)
-    cos_k, sin_k = (jnp.asarray(f(offsets), c.dtype) for f in (np.cos, np.sin))
-    return c * cos_k - s * sin_k, s * cos_k + c * sin_k
+    """cos and sin of angle + k·2π/3 (2.4.7), (3, ...), from those of ``angle`` alone."""
+    offsets = np.asarray(joint.ROLLER_OFFSETS, np.float64).reshape((3,) + (1,) * jnp.ndim(cos))
+    cos_k, sin_k = (jnp.asarray(f(offsets), cos.dtype) for f in (np.cos, np.sin))
+    return cos * cos_k - sin * sin_k, sin * cos_k + cos * sin_k
 
 
 def _angles(cos_theta, sin_theta, delta, delta_gamma):
@@ -254,9 +254,6 @@ def _positions(R, l, layout_angles, cos_theta, sin_theta, cos_t, sin_t, cos_h, s
     e = 0.5 * R * versine / cos_g
     track = _each_roller(cos_theta, sin_theta)
     cos_k, sin_k = _each_roller(cos_psi, sin_psi)
-    R, cos_g, sin_g, cos_t, sin_t, tan_g, z_common, plunge, e = (
-        x[..., None] for x in (R, cos_g, sin_g, cos_t, sin_t, tan_g, z_common, plunge, e)
-    )
     # â_k = −(cos ψ_k X' + sin ψ_k Y'), X' = (−cos γ cos Δ, −cos γ sin Δ, sin γ), Y' = (sin Δ,
     # −cos Δ, 0): the columns of the direction cosines 2.3.5 at τ = Δ.
     trunnion = (
@@ -285,13 +282,11 @@ def _solve(R, kinematics, inputs, speed, plunge):
     """The force model at every angle of ``kinematics`` (``_kinematics``) for θ̇ = speed, v_p = plunge."""
     centre, trunnion, (cos_k, sin_k), stroke_rate, distance_rate = kinematics
     dtype = cos_k.dtype
-    speed, plunge = (jnp.asarray(x, dtype)[..., None] for x in (speed, plunge))
+    speed, plunge = (jnp.asarray(x, dtype) for x in (speed, plunge))
     mu, lam, mu_t = (
-        jnp.asarray(x, dtype)[..., None]
-        for x in (inputs.params.mu_slp, inputs.params.lam, inputs.mu_trunnion)
+        jnp.asarray(x, dtype) for x in (inputs.params.mu_slp, inputs.params.lam, inputs.mu_trunnion)
     )
-    alpha, width = (jnp.asarray(x, dtype)[..., None] for x in (inputs.contact_angle, inputs.width))
-    R = R[..., None]
+    alpha, width = (jnp.asarray(x, dtype) for x in (inputs.contact_angle, inputs.width))
     reference = R * jnp.abs(speed) + jnp.abs(plunge)
     inverse = jnp.where(reference > 0, 1.0 / jnp.where(reference > 0, reference, 1.0), 0.0)
     cos_a, sin_a = jnp.cos(alpha), jnp.sin(alpha)
@@ -323,23 +318,23 @@ def _solve(R, kinematics, inputs, speed, plunge):
     # Torque about Z (N·mm) and the spider's balance across Z: three equations in N_k, whose
     # column k is roller k's (R g_k·e_t,k, g_k,x, g_k,y).
     torque_arm = R * _dot(g, e_t)
-    columns = tuple((torque_arm[..., k], g[0][..., k], g[1][..., k]) for k in range(3))
-    shape = cos_k.shape[:-1]
+    columns = tuple((torque_arm[k], g[0][k], g[1][k]) for k in range(3))
+    shape = cos_k.shape[1:]
     rhs = tuple(
         jnp.broadcast_to(jnp.asarray(value, dtype), shape)
         for value in (1000.0 * inputs.torque, inputs.transverse_x, inputs.transverse_y)
     )
-    normal = jnp.stack(_cramer(columns, rhs), axis=-1)
+    normal = jnp.stack(_cramer(columns, rhs))
     force = tuple(normal * x for x in g)
-    moment = tuple(jnp.sum(m, axis=-1) / 1000.0 for m in _cross(centre, force))
+    moment = tuple(jnp.sum(m, axis=0) / 1000.0 for m in _cross(centre, force))
     loss = mu * sign_slip * slip + lam * sign_roll * rolling + mu_t * sign_trunnion * trunnion_speed
     return RollerForces(
         normal=normal,
         radial=-kappa * normal,
         force=jnp.stack(force, axis=-1),
-        axial=jnp.sum(force[2], axis=-1),
+        axial=jnp.sum(force[2], axis=0),
         moment=jnp.stack(moment, axis=-1),
-        power=jnp.sum(normal * loss, axis=-1) / 1000.0,
+        power=jnp.sum(normal * loss, axis=0) / 1000.0,
         slip=slip,
         rolling=rolling,
     )
@@ -415,6 +410,18 @@ def _roller_forces(layout, theta, inputs, *, solver, case):
     return jax.tree_util.tree_map(lambda x: x.reshape(shape + x.shape[1:]), out)
 
 
+def _rollers_last(f):
+    """``RollerForces`` from ``_solve`` (the rollers on the leading axis) with the rollers last."""
+    return dataclasses.replace(
+        f,
+        normal=jnp.moveaxis(f.normal, 0, -1),
+        radial=jnp.moveaxis(f.radial, 0, -1),
+        force=jnp.moveaxis(f.force, 0, -2),
+        slip=jnp.moveaxis(f.slip, 0, -1),
+        rolling=jnp.moveaxis(f.rolling, 0, -1),
+    )
+
+
 def _series(case, f):
     """The series over the angles a case's quantities use, from its ``RollerForces`` at an angle."""
     if case == "lts":
@@ -423,7 +430,7 @@ def _series(case, f):
         "axial": f.axial,
         "moment_x": f.moment[..., 0],
         "moment_y": f.moment[..., 1],
-        "normal_max": jnp.max(f.normal, -1),
+        "normal_max": jnp.max(f.normal, 0),
         "power": f.power,
     }
 
@@ -457,7 +464,7 @@ def _over_angles(R, l, gamma0, sol, rates, inputs, cases, full):
         out = {}
         for case in cases:
             f = _solve(R, kinematics, inputs, *_case_motion(inputs, case))
-            out[case] = (_series(case, f), f if full else None)
+            out[case] = (_series(case, f), _rollers_last(f) if full else None)
         return carry, out
 
     _, out = jax.lax.scan(at_angle, None, angles)
@@ -521,8 +528,10 @@ def force_quantities(
     ``gaf_ninth_order`` [N]; ``lts_mean``, ``lts_ripple`` [N];
     ``complementary_torque_steady``, ``complementary_torque_third_order``,
     ``complementary_torque_sixth_order`` [N·m]; ``roller_load_ratio`` [–];
-    ``friction_power`` [W]; ``result`` (the worst RESULTS code). Elementwise:
-    ``jax.vmap`` it over layouts. Nothing is checked (it runs inside jit).
+    ``friction_power`` [W]; ``result`` (the worst RESULTS code). Elementwise: a
+    batch of layouts (fields of shape (N,), the revolution's (N, n)) gives each
+    quantity of shape (N,), faster than ``jax.vmap`` over the layouts (the batch,
+    not the rollers, on the arrays' last axis). Nothing is checked (it runs inside jit).
     """
     names = tuple(names)
     return _evaluate(layout, sol, rates, inputs, names)[0]
@@ -554,11 +563,11 @@ def _evaluate(layout, sol, rates, inputs, names, full=False):
         # Without torque the load ratio N_k / (T/3R) is 0/0: NaN, and no failure of the solve.
         defined = {k: v for k, v in out.items() if k != "roller_load_ratio"}
         ratio = out.get("roller_load_ratio")
-        finite = jnp.all(jnp.stack([jnp.all(jnp.isfinite(v)) for v in defined.values()]))
+        finite = jnp.all(jnp.stack([jnp.isfinite(v) for v in defined.values()]), axis=0)
         if ratio is not None:
-            finite &= jnp.all(jnp.isfinite(ratio) | (torque == 0))
+            finite &= jnp.isfinite(ratio) | (torque == 0)
         out["result"] = worst(
-            jnp.max(sol.result), code_where(~finite, RESULTS.nonfinite, RESULTS.successful)
+            jnp.max(sol.result, -1), code_where(~finite, RESULTS.nonfinite, RESULTS.successful)
         )
     return out, {case: f for case, (_, f) in cases.items()}
 

@@ -193,11 +193,7 @@ def _evaluate_chunk(layouts, gaf, forces, *, n_theta, solver, outputs):
         result.update(gaf_rms=g.rms, gaf_peak=g.peak, gaf_third_order=g.third_order)
         codes.append(g.result)
     if force_names:
-        f = jax.vmap(
-            lambda layout, s: force_model.force_quantities(
-                layout, *s, forces, force_names + ("result",)
-            )
-        )(layouts, solved)
+        f = force_model.force_quantities(layouts, *solved, forces, force_names + ("result",))
         codes.append(f.pop("result"))
         result.update(f)
     if codes and "result" in result:
