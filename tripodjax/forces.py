@@ -563,7 +563,9 @@ def _evaluate(layout, sol, rates, inputs, names, full=False):
         # Without torque the load ratio N_k / (T/3R) is 0/0: NaN, and no failure of the solve.
         defined = {k: v for k, v in out.items() if k != "roller_load_ratio"}
         ratio = out.get("roller_load_ratio")
-        finite = jnp.all(jnp.stack([jnp.isfinite(v) for v in defined.values()]), axis=0)
+        finite = jnp.ones(sol.theta.shape[:-1], bool)
+        for value in defined.values():
+            finite &= jnp.isfinite(value)
         if ratio is not None:
             finite &= jnp.isfinite(ratio) | (torque == 0)
         out["result"] = worst(
