@@ -95,6 +95,17 @@ def test_the_roller_load_ratio_alone():
     assert alone.result_counts["successful"] == 2
 
 
+def test_the_force_model_takes_chunks_of_at_most_1024_layouts_on_a_cpu():
+    from tripodjax.sweep import FORCE_CHUNK_LAYOUTS, _points_per_layout, default_chunk_size
+
+    cpu = jax.devices("cpu")
+    for n_theta, chunk in ((360, FORCE_CHUNK_LAYOUTS), (36, FORCE_CHUNK_LAYOUTS), (3600, 218)):
+        points = _points_per_layout(n_theta, solvers.Newton(), ("lts_mean",), forces=True)
+        assert default_chunk_size(points, cpu) == chunk
+    # The GAF names without forces= (Lee's friction) keep the kinematics' chunks.
+    assert _points_per_layout(360, solvers.Newton(), ("gaf_rms",)) == 120
+
+
 def test_force_outputs_are_refused_without_their_inputs_and_with_both():
     batch, inputs = layouts(2), forces.ForceInputs(500.0)
     with pytest.raises(ValueError, match="outputs lts_mean need forces=ForceInputs"):
