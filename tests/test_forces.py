@@ -353,13 +353,13 @@ def test_every_solver_level_and_vmap_over_layouts():
             assert float(getattr(other, name)) == pytest.approx(
                 float(getattr(newton, name)), rel=tol, abs=tol * scale
             ), (solver, name)
+    from tripodjax.kinematics import revolution
+
     layouts = Layout(
         jnp.array([25.0, 30.0]), jnp.array([500.0, 450.0]), jnp.radians(jnp.array([20.0, 12.0]))
     )
 
     def one(layout):
-        from tripodjax.kinematics import revolution
-
         sol, rates = revolution(layout, 120, "newton", with_rates=True)
         return forces.force_quantities(layout, sol, rates, inputs, ("gaf_third_order", "lts_mean"))
 
@@ -370,6 +370,16 @@ def test_every_solver_level_and_vmap_over_layouts():
         )
         for name in ("gaf_third_order", "lts_mean"):
             assert float(batch[name][i]) == pytest.approx(float(getattr(single, name)), rel=1e-12)
+    # A batch passed whole (the sweep's way: the layouts on the arrays' last axis) as under vmap.
+    solved = jax.vmap(lambda layout: revolution(layout, 120, "newton", with_rates=True))(layouts)
+    names = (*forces.QUANTITIES, "result")
+    whole = forces.force_quantities(layouts, *solved, inputs, names)
+    mapped = jax.vmap(lambda layout, s: forces.force_quantities(layout, *s, inputs, names))(
+        layouts, solved
+    )
+    for name in names:
+        assert whole[name].shape == (2,)
+        np.testing.assert_allclose(whole[name], mapped[name], rtol=1e-12, err_msg=name)
 
 
 def test_float32_against_float64(float32_default):

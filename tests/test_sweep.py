@@ -84,6 +84,28 @@ def test_force_outputs_match_force_quantities(dtype, rel, request):
             assert result[name][i] == pytest.approx(float(getattr(one, name)), rel=rel), name
 
 
+def test_the_roller_load_ratio_alone():
+    # Its status joins "result" on its own (this raised "Need at least one array to stack").
+    batch, inputs = layouts(2), forces.ForceInputs(500.0)
+    alone = sweep(batch, outputs=("roller_load_ratio", "result"), forces=inputs)
+    together = sweep(batch, outputs=FORCE_NAMES + ("result",), forces=inputs)
+    np.testing.assert_allclose(
+        alone["roller_load_ratio"], together["roller_load_ratio"], rtol=1e-13
+    )
+    assert alone.result_counts["successful"] == 2
+
+
+def test_the_force_model_takes_chunks_of_at_most_1024_layouts_on_a_cpu():
+    from tripodjax.sweep import FORCE_CHUNK_LAYOUTS, _points_per_layout, default_chunk_size
+
+    cpu = jax.devices("cpu")
+    for n_theta, chunk in ((360, FORCE_CHUNK_LAYOUTS), (36, FORCE_CHUNK_LAYOUTS), (3600, 218)):
+        points = _points_per_layout(n_theta, solvers.Newton(), ("lts_mean",), forces=True)
+        assert default_chunk_size(points, cpu) == chunk
+    # The GAF names without forces= (Lee's friction) keep the kinematics' chunks.
+    assert _points_per_layout(360, solvers.Newton(), ("gaf_rms",)) == 120
+
+
 def test_force_outputs_are_refused_without_their_inputs_and_with_both():
     batch, inputs = layouts(2), forces.ForceInputs(500.0)
     with pytest.raises(ValueError, match="outputs lts_mean need forces=ForceInputs"):
