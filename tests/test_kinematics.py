@@ -117,6 +117,26 @@ def test_float32_irregularity_within_1e_3_of_float64(float32_default):
     assert float(metrics32.irregularity) == pytest.approx(irr64, rel=1e-3)
 
 
+def test_inside_a_users_jit_equals_the_top_level_call():
+    """The top-level call is compiled for latency (its own compiler options); inside a user's
+    jax.jit, jax.grad or both the same metrics and derivatives come from the caller's program
+    (JAX takes compiler options on a top-level program only)."""
+    layout = seed_case("N")
+
+    def irregularity(lay):
+        return kinematic_metrics(lay).irregularity
+
+    top, slope = kinematic_metrics(layout), jax.grad(irregularity)(layout)
+    inside = jax.jit(kinematic_metrics)(layout)
+    slope_inside = jax.jit(jax.grad(irregularity))(layout)
+    for name in ("irregularity", "delta_pp", "gamma_pp", "roller_axial_stroke"):
+        assert float(getattr(inside, name)) == pytest.approx(float(getattr(top, name)), rel=1e-13)
+    for field in ("R", "l", "gamma0"):
+        assert float(getattr(slope_inside, field)) == pytest.approx(
+            float(getattr(slope, field)), rel=1e-12
+        )
+
+
 def test_vmap_over_layouts_matches_one_by_one():
     codes = ["N", "R4", "g5"]
     batch = Layout(
