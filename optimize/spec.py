@@ -611,23 +611,23 @@ def _real(where, value):
         raise SpecError(str(error)) from None
 
 
-def _number(table, section, key, low=None, high=None, *, low_open=False, unit=""):
-    """A finite number in [low, high] (low excluded when low_open)."""
+def _number(table, section, key, low=None, high=None, *, low_open=False, high_open=False, unit=""):
+    """A finite number in [low, high] (low excluded when low_open, high when high_open)."""
     where = f"{section}.{key}"
     value = table[section][key]
-    return _in_range(where, _real(where, value), low, high, low_open, unit)
+    return _in_range(where, _real(where, value), low, high, low_open, unit, high_open)
 
 
-def _in_range(where, value, low, high, low_open, unit):
+def _in_range(where, value, low, high, low_open, unit, high_open=False):
     ok = math.isfinite(value)
     ok = ok and (low is None or (value > low if low_open else value >= low))
-    ok = ok and (high is None or value <= high)
+    ok = ok and (high is None or (value < high if high_open else value <= high))
     if not ok:
         parts = []
         if low is not None:
             parts.append(f"{'>' if low_open else '≥'} {low:g}{unit}")
         if high is not None:
-            parts.append(f"≤ {high:g}{unit}")
+            parts.append(f"{'<' if high_open else '≤'} {high:g}{unit}")
         allowed = "a finite number " + " and ".join(parts) if parts else "a finite number"
         raise SpecError(f"{where} = {value!r} is not allowed: {allowed}")
     return value
@@ -1280,7 +1280,7 @@ def _shaft(table):
         "surface_uts_MPa": _number(
             table, "shaft", "surface_uts_MPa", 0.0, low_open=True, unit=" MPa"
         ),
-        "depth_drop": _number(table, "shaft", "depth_drop", 0.0, 1.0),
+        "depth_drop": _number(table, "shaft", "depth_drop", 0.0, 1.0, high_open=True),
         "fatigue_ratio": _number(table, "shaft", "fatigue_ratio", 1.0, low_open=True),
         "allowed_damage": _number(table, "shaft", "allowed_damage", 0.0, low_open=True),
     }
@@ -1310,9 +1310,11 @@ def _outboard(table):
     from tripodjax import outboard
 
     n_balls = table["outboard"]["n_balls"]
-    if not isinstance(n_balls, int) or isinstance(n_balls, bool) or not 1 <= n_balls <= 24:
+    low = outboard.MIN_BALLS
+    if not isinstance(n_balls, int) or isinstance(n_balls, bool) or not low <= n_balls <= 24:
         raise SpecError(
-            f"outboard.n_balls = {_integer_text(n_balls)} is not allowed: an integer from 1 to 24"
+            f"outboard.n_balls = {_integer_text(n_balls)} is not allowed: an integer from {low} "
+            "to 24"
         )
     numbers = {
         key: _number(table, "outboard", key, 0.0, low_open=True, unit=unit)
@@ -1329,7 +1331,9 @@ def _outboard(table):
     numbers["longitudinal_conformity"] = _number(
         table, "outboard", "longitudinal_conformity", -1.0, 1.0, low_open=True
     )
-    pressure = _number(table, "outboard", "pressure_angle_deg", 0.0, 90.0, low_open=True, unit="°")
+    pressure = _number(
+        table, "outboard", "pressure_angle_deg", 0.0, 90.0, low_open=True, high_open=True, unit="°"
+    )
     oblique = _number(table, "outboard", "oblique_angle_deg", 0.0, 89.999, unit="°")
     numbers["pressure_angle"], numbers["oblique_angle"] = map(math.radians, (pressure, oblique))
     numbers["tolerance"] = _number(table, "outboard", "tolerance", 0.0)

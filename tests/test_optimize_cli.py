@@ -165,6 +165,7 @@ def test_cli_design_is_feasible_under_evaluate(cli_run):
         ("[constraints]\nmax_life_km = 1.0\n", "below life.required_km"),
         ("[solver]\nn_theta = 9999996\n", "solver.n_theta"),
         ("[life.conditions]\nnames = 5\n", "life.conditions.names"),
+        ("[outboard]\nn_balls = 2\n", "outboard.n_balls = 2 is not allowed"),
     ],
 )
 def test_cli_bad_spec_exits_2_with_one_line_and_no_report(tmp_path, content, fragment):

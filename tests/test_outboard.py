@@ -315,3 +315,57 @@ def test_hertz_checks_the_longitudinal_conformity():
         )
     with pytest.raises(ValueError, match="reading = 'table' is not allowed"):
         outboard.capacities(outboard.FixedJoint(**JOINT), reading="table")
+
+
+@pytest.mark.parametrize("n_balls", [0, 1, 2])
+def test_a_ball_joint_has_at_least_three_balls_in_every_function(n_balls):
+    """The count is named as the caller gives it (n_balls, not the tripod's n_rollers)."""
+    joint = outboard.FixedJoint(**JOINT)
+    spectrum = life.LoadSpectrum(np.array([1154.0]), np.array([100.0]), np.array([28.0]), [1.0])
+    conditions = life.WorkingConditions(np.radians(ANGLES_DEG), SHARES)
+    calls = [
+        lambda: outboard.capacities(joint, n_balls=n_balls),
+        lambda: outboard.static_safety(joint, 1154.0, n_balls=n_balls),
+        lambda: outboard.min_ball_diameter(joint, 1154.0, R_over_d=1.65, C_s=1.35, n_balls=n_balls),
+        lambda: outboard.joint_life(joint, spectrum, conditions, n_balls=n_balls),
+    ]
+    for call in calls:
+        with pytest.raises(ValueError) as info:
+            call()
+        assert str(info.value) == (
+            f"n_balls = {n_balls} is outside the allowed range: an integer ≥ 3"
+        )
+    with pytest.raises(TypeError, match=r"^n_balls = 6\.0 is not allowed; allowed: an integer"):
+        outboard.capacities(joint, n_balls=6.0)
+    assert float(outboard.capacities(joint, n_balls=3).M_s) == pytest.approx(
+        float(outboard.capacities(joint).M_s) / 2, rel=1e-12
+    )
+
+
+def test_a_pressure_angle_of_90_degrees_is_no_ball_joint():
+    with pytest.raises(ValueError) as info:
+        outboard.FixedJoint(**JOINT, pressure_angle=math.pi / 2)
+    assert str(info.value) == (
+        "FixedJoint.pressure_angle = 1.5707963267948966 is outside the allowed range: "
+        "0 < pressure_angle < 1.5708 rad (finite)"
+    )
+    outboard.FixedJoint(**JOINT, pressure_angle=math.radians(89.9))
+
+
+def test_the_life_takes_one_joint_and_vmaps_over_several():
+    spectrum = life.LoadSpectrum(
+        np.array([1154.0, 350.0]), np.array([100.0, 1000.0]), np.array([28.0, 90.0]), [0.3, 0.7]
+    )
+    conditions = life.WorkingConditions(np.radians(ANGLES_DEG), SHARES)
+    diameters = np.array([16.0, 18.256])
+    with pytest.raises(ValueError) as info:
+        outboard.joint_life(outboard.FixedJoint(**{**JOINT, "d": diameters}), spectrum, conditions)
+    assert str(info.value).startswith("joint.d has shape (2,); allowed: one joint")
+    joints = jax.tree.map(
+        lambda a: np.broadcast_to(np.asarray(a, float), (2,)),
+        outboard.FixedJoint(**{**JOINT, "d": diameters}),
+    )
+    km = jax.vmap(lambda j: outboard.joint_life(j, spectrum, conditions).km)(joints)
+    for d, expected in zip(diameters, km, strict=True):
+        one = outboard.joint_life(outboard.FixedJoint(**{**JOINT, "d": d}), spectrum, conditions)
+        assert float(one.km) == pytest.approx(float(expected), rel=1e-12)

@@ -192,3 +192,31 @@ def test_tables_hold_the_reports_numbers(reports):
     assert math.fsum(r[2] for r in damage if r[0] == "A-A") == pytest.approx(
         report["sections"][0]["damage"], rel=1e-12
     )
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        (
+            "[outboard]\nn_balls = 2",
+            "outboard.n_balls = 2 is not allowed: an integer from 3 to 24",
+        ),
+        (
+            "[outboard]\npressure_angle_deg = 90.0",
+            "outboard.pressure_angle_deg = 90.0 is not allowed: a finite number > 0° and < 90°",
+        ),
+        (
+            "[shaft]\ndepth_drop = 1.0",
+            "shaft.depth_drop = 1.0 is not allowed: a finite number ≥ 0 and < 1",
+        ),
+        (
+            "[shaft]\ndepth_drop = -0.1",
+            "shaft.depth_drop = -0.1 is not allowed: a finite number ≥ 0 and < 1",
+        ),
+    ],
+)
+def test_the_specs_ranges_are_the_librarys(text, message):
+    """A key's allowed range in the spec's message is the library's, open ends included."""
+    with pytest.raises(optimize.SpecError) as info:
+        optimize.parse_spec(text)
+    assert str(info.value) == message

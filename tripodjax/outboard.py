@@ -64,6 +64,7 @@ from tripodjax._checks import (
     check_choice,
     check_conformity,
     check_instance,
+    check_integer,
     check_non_negative,
     check_positive,
     check_range,
@@ -93,7 +94,9 @@ class FixedJoint:
         P_s, P_d, P_sd: allowed static, long-lasting and short-lasting dynamic
             pressures [MPa], > 0.
         C_s: safety coefficient on the pressure [–], > 0 (workbook 1.1).
-        pressure_angle: ε [rad] in (0, π/2] (π/4, the workbook's 45°).
+        pressure_angle: ε [rad] in (0, π/2) (π/4, the workbook's 45°; at π/2 the ball
+            would touch its track on the pitch circle, the groove as deep as the ball's radius
+            in both races: no ball joint).
         oblique_angle: the tracks' oblique angle ζ (YZ) [rad] in [0, π/2) (0).
         tolerance: the tolerance on the life's calculation spread [–], ≥ 0 (0.15).
     """
@@ -122,6 +125,7 @@ class FixedJoint:
             0.0,
             math.pi / 2,
             low_open=True,
+            high_open=True,
             unit=" rad",
         )
         check_range(
@@ -136,10 +140,18 @@ class FixedJoint:
 
 
 READINGS = ("consistent", "workbook")
+MIN_BALLS = 3
+"""The fewest balls of a fixed joint: three hold the inner race on the joint's centre."""
 _POSITIVE = ("d", "R", "P_s", "P_d", "P_sd", "C_s")
 
 
+def _check_n_balls(n_balls, name="n_balls"):
+    """The ball count rule: an integer ≥ `MIN_BALLS` (3; not a bool, nor a float such as 6.0)."""
+    return check_integer(name, n_balls, minimum=MIN_BALLS)
+
+
 def _common(joint, n_balls):
+    _check_n_balls(n_balls)
     return dict(
         conformity=joint.conformity,
         longitudinal_conformity=joint.longitudinal_conformity,
@@ -165,7 +177,7 @@ def capacities(
 ) -> hertz.Capacities:
     """M_s, M_d, M_sd [N·m] of the joint ([`hertz.capacities`][tripodjax.hertz.capacities]).
 
-    ``n_balls`` an integer ≥ 1; ``gamma`` the working angle [rad] for M_d and
+    ``n_balls`` an integer ≥ 3; ``gamma`` the working angle [rad] for M_d and
     M_sd; ``reading`` ``"consistent"`` (exact Hertz μν) or ``"workbook"`` (μν
     at cos τ truncated to 10⁻³, the book table's step: the sheet's 2.540 and
     2.650; see the module docstring). The workbook reading is for reproducing the
@@ -235,8 +247,8 @@ def joint_life(
 ) -> life.Life:
     """The joint's life (hours and km), ×(1 + tol), under the spectrum and its working conditions.
 
-    [`life.joint_life`][tripodjax.life.joint_life] with the joint's numbers;
-    every life (combined and per condition) is multiplied by 1 + tolerance.
+    [`life.joint_life`][tripodjax.life.joint_life] with the joint's numbers (one joint:
+    scalar fields; ``vmap`` over several); every life (combined and per condition) is multiplied by 1 + tolerance.
     ``reading``:
 
     - ``"consistent"`` (default): exact Hertz μν, and km = hours × V_m with
@@ -253,6 +265,13 @@ def joint_life(
       the same sheet is not this reading (docs/physics.md).
     """
     check_instance("joint", joint, FixedJoint, "an outboard.FixedJoint")
+    for field in dataclasses.fields(joint):
+        shape = jnp.shape(getattr(joint, field.name))
+        if shape:
+            raise ValueError(
+                f"joint.{field.name} has shape {shape}; allowed: one joint (a number in every "
+                "field, shape ()): jax.vmap(joint_life) over several"
+            )
     table = _table_factor(joint, reading)
     out = life.joint_life(
         joint.d,
