@@ -440,3 +440,114 @@ def test_workbook_sections_are_sheet_5s_and_every_rear_verdict_is_positive(chain
     section, material = shaft.WORKBOOK_SECTIONS["A-A"]
     allowed = shaft.static_check(section, material, 1154.0).allowed_shear
     assert float(allowed[0]) == pytest.approx(1049.0, abs=0.6)
+
+
+def test_a_float32_section_hardened_through_its_wall_is_accepted():
+    """h + t on the wall (Øe − Øi)/2 in float32: the rounding of the sum is no violation."""
+    f32 = np.float32
+    for outer, depth, inner in [(16.1, 0.5, 0.0), (25.8, 5.6, 0.0), (30.685, 2.5, 12.3)]:
+        wall = (f32(outer) - f32(inner)) / f32(2)
+        section = shaft.Section(f32(outer), f32(depth), wall - f32(depth), f32(inner))
+        static = shaft.static_check(section, shaft.Material(**MATERIAL), f32(1154.0))
+        assert int(static.result) == int(RESULTS.successful)
+    with pytest.raises(ValueError, match=r"hardened_depth \+ transition_depth"):
+        shaft.Section(f32(16.1), f32(0.5), f32(7.6))  # 0.05 mm beyond
+
+
+@pytest.mark.parametrize(
+    "build, message",
+    [
+        (
+            lambda: shaft.Section(np.array([26.0, 27.5]), np.array([5.6, 5.6, 2.5]), 3.5),
+            "Section fields have shapes outer_diameter (2,), hardened_depth (3,), "
+            "transition_depth (), inner_diameter (); allowed: numbers, or arrays whose shapes "
+            "broadcast together",
+        ),
+        (
+            lambda: shaft.Material(**{**MATERIAL, "safety": np.array([])}),
+            "Material.safety is empty (shape (0,)); allowed: a number or a non-empty array",
+        ),
+        (
+            lambda: shaft.static_check(
+                shaft.Section(np.array([26.0, 27.5, 25.8]), 5.6, 3.5),
+                shaft.Material(**MATERIAL),
+                np.array([1154.0, 750.0]),
+            ),
+            "the fields have shapes section (3,), material (), torque (2,); allowed: shapes "
+            "that broadcast together",
+        ),
+        (
+            lambda: shaft.strength_profile(
+                shaft.Section(np.array([26.0, 27.5, 25.8]), 5.6, 3.5),
+                shaft.Material(**MATERIAL),
+                np.array([12.0, 11.0]),
+            ),
+            "the fields have shapes section (3,), material (), radius (2,)",
+        ),
+    ],
+)
+def test_shapes_that_do_not_broadcast_are_named(build, message):
+    with pytest.raises(ValueError) as info:
+        build()
+    assert message in str(info.value) and "\n" not in str(info.value)
+    # the same torques against each section: torque[:, None]
+    sections = shaft.Section(np.array([26.0, 27.5, 25.8]), 5.6, 3.5)
+    static = shaft.static_check(sections, shaft.Material(**MATERIAL), np.array([[1154.0], [750.0]]))
+    assert static.safety.shape == (2, 3, 3)
+
+
+def test_stresses_and_limits_against_an_independent_computation():
+    """τ = 16 T/(π Øe³) solid, 16 T Øe/(π (Øe⁴ − Øi⁴)) hollow at the surface; Øi → 0 is the
+    solid section; doubling the torque halves the static safety and raises the damage; a
+    deeper hardened layer never lowers the section's static safety nor the surface strength."""
+    material = shaft.Material(**MATERIAL)
+    T = 1154.0
+    solid = shaft.static_check(shaft.Section(26.0, 5.6, 3.5), material, T)
+    assert float(solid.shear[0]) == pytest.approx(16 * T * 1e3 / (math.pi * 26.0**3), rel=1e-12)
+    hollow = shaft.static_check(shaft.Section(26.0, 2.0, 1.0, 14.0), material, T)
+    assert float(hollow.shear[0]) == pytest.approx(
+        16 * T * 1e3 * 26.0 / (math.pi * (26.0**4 - 14.0**4)), rel=1e-12
+    )
+    for inner in (1e-2, 1e-4):
+        near = shaft.static_check(shaft.Section(26.0, 5.6, 3.5, inner), material, T)
+        np.testing.assert_allclose(near.safety, solid.safety, rtol=inner**4 / 26.0**4 * 10)
+    double = shaft.static_check(shaft.Section(26.0, 5.6, 3.5), material, 2 * T)
+    np.testing.assert_allclose(double.safety, solid.safety / 2, rtol=1e-12)
+    safeties = [
+        float(jnp.min(shaft.static_check(shaft.Section(26.0, h, 3.5), material, T).safety))
+        for h in np.linspace(0.0, 9.5, 20)
+    ]
+    assert np.all(np.diff(safeties) >= -1e-12)
+    surface = [
+        float(shaft.strength_profile(shaft.Section(26.0, h, 3.5), material, 13.0))
+        for h in np.linspace(0.1, 9.5, 20)
+    ]
+    assert surface == pytest.approx([2180.0] * 20)
+
+
+def test_a_solid_section_hardened_to_its_centre(sheet):
+    """h + t = Øe/2 (r_TR = 0, no stress there): the static safety there is +∞ and the
+    section's the least of the others, the damage there the limit of r_TR → 0, every result
+    successful and every derivative finite (they were ∞, NaN and nonfinite)."""
+    rows, _ = sheet
+    material = shaft.Material(**MATERIAL)
+
+    def checks(outer, depth, transition):
+        section = shaft.Section(outer, depth, transition)
+        static = shaft.static_check(section, material, 1154.0)
+        fatigue = shaft.fatigue_check(section, material, rows)
+        return jnp.min(static.safety), fatigue.damage[1], static.result, fatigue.result
+
+    through = checks(26.0, 5.6, 7.4)
+    near = checks(26.0, 5.6, 7.4 - 1e-7)
+    assert int(through[2]) == int(through[3]) == int(RESULTS.successful)
+    assert float(through[0]) == pytest.approx(float(near[0]), rel=1e-12)
+    assert float(through[1]) == pytest.approx(float(near[1]), rel=1e-6)
+    ratio = shaft.fatigue_check(shaft.Section(26.0, 13.0, 0.0), material, rows).ratio
+    assert bool(jnp.all(jnp.isfinite(ratio)))
+    for i in range(2):
+        grads = jax.grad(lambda *x, i=i: checks(*x)[i], argnums=(0, 1, 2))(26.0, 5.6, 7.4)
+        h = 1e-6  # one-sided in t: the wall bounds it
+        below = (float(checks(26.0, 5.6, 7.4)[i]) - float(checks(26.0, 5.6, 7.4 - h)[i])) / h
+        assert all(np.isfinite(float(g)) for g in grads), i
+        assert float(grads[2]) == pytest.approx(below, rel=1e-4, abs=1e-9), i

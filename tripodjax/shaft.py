@@ -89,6 +89,7 @@ import numpy as np
 from jax.typing import ArrayLike
 
 from tripodjax._checks import (
+    _at_most,
     check,
     check_choice,
     check_instance,
@@ -96,6 +97,7 @@ from tripodjax._checks import (
     check_positive,
     check_range,
     check_real,
+    check_shapes,
     checked_pytree_dataclass,
 )
 from tripodjax._pytree import pytree_dataclass
@@ -130,6 +132,25 @@ def _concrete(*values):
     return None if any(a is None for a in arrays) else arrays
 
 
+def _shape(obj):
+    """The shape of a Section's, Material's or EventRate's fields, which broadcast together
+    and are not empty (else a ValueError naming each field's shape)."""
+    name = type(obj).__name__
+    shapes = {f: jnp.shape(getattr(obj, f)) for f in obj.__dataclass_fields__}
+    return check_shapes(shapes, prefix=f"{name}.")
+
+
+def _check_batch(section, material, **values):
+    """The section, the material and ``values`` (e.g. the torque) broadcast together."""
+    shapes = {"section": _shape(section), "material": _shape(material)}
+    shapes.update({k: jnp.shape(v) for k, v in values.items()})
+    check_shapes(
+        shapes,
+        allowed="shapes that broadcast together (e.g. a torque[:, None] against sections of "
+        "shape (n,), or jax.vmap over the sections)",
+    )
+
+
 @checked_pytree_dataclass
 class Section:
     """One cross-section that carries the torque (seed fig. 4.3.5), with its hardened layer.
@@ -150,6 +171,7 @@ class Section:
         check_positive(**{"Section.outer_diameter": self.outer_diameter})
         for k in ("hardened_depth", "transition_depth", "inner_diameter"):
             check_non_negative(f"Section.{k}", getattr(self, k), " mm")
+        _shape(self)
         arrays = _concrete(
             self.outer_diameter, self.inner_diameter, self.hardened_depth, self.transition_depth
         )
@@ -163,7 +185,8 @@ class Section:
             f"0 ≤ inner_diameter < outer_diameter (= {_first(outer, a=inner >= outer)} mm)",
         )
         wall = (outer - inner) / 2.0
-        beyond = h + t > wall * (1.0 + 1e-12)
+        # on the wall up to rounding: 1e-12 of it, or a few ulps of a float32 section's dtype
+        beyond = (h + t > wall * (1.0 + 1e-12)) & ~_at_most(h + t, wall, *arrays)
         check(
             "Section.hardened_depth + transition_depth",
             h + t,
@@ -202,6 +225,7 @@ class Material:
         check_range("Material.depth_drop", self.depth_drop, 0.0, 1.0, high_open=True)
         check_range("Material.fatigue_ratio", self.fatigue_ratio, 1.0, low_open=True)
         check_range("Material.safety", self.safety, 1.0)
+        _shape(self)
         arrays = _concrete(self.core_uts, self.surface_uts, self.depth_drop)
         if arrays is None:
             return
@@ -272,6 +296,7 @@ class EventRate:
         )
         for k in ("rate_low", "rate_high"):
             check_range(f"EventRate.{k}", getattr(self, k), 0.0, 1.0, low_open=True)
+        _shape(self)
         arrays = _concrete(self.speed_low, self.speed_high)
         if arrays is None:
             return
@@ -336,6 +361,8 @@ def strength_profile(section: Section, material: Material, radius: ArrayLike) ->
     """
     check_instance("section", section, Section, "a shaft.Section")
     check_instance("material", material, Material, "a shaft.Material")
+    check_real("radius", radius)
+    _check_batch(section, material, radius=radius)
     arrays = _concrete(radius, section.outer_diameter, section.inner_diameter)
     if arrays is not None:
         r, outer, inner = np.broadcast_arrays(*arrays)
@@ -373,7 +400,8 @@ class StaticCheck:
         uts: σ_R there [MPa].
         allowed_shear: τ_adm = σ_R / (C_s √3) [MPa].
         shear: τ = T r / J under the torque [MPa].
-        safety: τ_adm / τ [–] at each radius; the section's is their minimum.
+        safety: τ_adm / τ [–] at each radius (+∞ at r_TR = 0, the unstressed centre of a
+            solid section hardened through); the section's is their minimum.
         passed: every safety ≥ 1 (bool; False where a safety is NaN).
         result: code (int32, [`RESULTS`][tripodjax.results.RESULTS]): ``successful``,
             or ``nonfinite`` where an input is outside its domain or not finite inside
@@ -398,6 +426,7 @@ def static_check(section: Section, material: Material, torque: ArrayLike) -> Sta
     check_instance("section", section, Section, "a shaft.Section")
     check_instance("material", material, Material, "a shaft.Material")
     check_positive(torque=torque)
+    _check_batch(section, material, torque=torque)
     return _static_check(section, material, torque)
 
 
@@ -408,7 +437,10 @@ def _static_check(section, material, torque):
     J = polar_moment(section)[..., None]
     torque = jnp.asarray(torque)[..., None]
     shear = 1000.0 * torque * radius / J
-    safety = allowed / shear
+    # +∞ where no shear: the centre of a solid section hardened through (r_TR = 0), with
+    # derivatives 0 there (not ∞ · 0)
+    stressed = radius > 0
+    safety = jnp.where(stressed, allowed / jnp.where(stressed, shear, 1.0), jnp.inf)
     ok = _valid(section, material)[..., None] & jnp.isfinite(torque)
     safety = _nan_unless(ok, safety)
     return StaticCheck(
@@ -418,7 +450,9 @@ def _static_check(section, material, torque):
         shear=_nan_unless(ok, shear),
         safety=safety,
         passed=jnp.all(safety >= 1.0, axis=-1),
-        result=_code(safety, axis=-1),
+        # the section's safety, the least over the kinks, is finite: +∞ at the centre of a
+        # solid section hardened through (r_TR = 0, no shear there) is no failure
+        result=_code(jnp.min(safety, axis=-1, keepdims=True), axis=-1),
     )
 
 
@@ -590,7 +624,16 @@ def _fatigue_check(s, m, rows, workbook):
     upper, lower = at(per_mm) * rows.load, at(per_mm) * rows.brake
     mean, amplitude = (upper + lower) / 2.0, (upper - lower) / 2.0
     sigma_R, sigma_f = at(uts), at(fatigue_limit)
-    allowed = sigma_f * sigma_R * amplitude / (sigma_R * amplitude + sigma_f * jnp.abs(mean))
+    # σ_lim = σ_f σ_R σ_a / (σ_R σ_a + σ_f |σ_m|) depends on the cycle's ratio, not on the
+    # stress's scale: written with the torques it is the same number, and finite where the
+    # stress is 0 (the centre of a solid section hardened through, r_TR = 0) instead of 0/0
+    mean_torque, amplitude_torque = (rows.load + rows.brake) / 2.0, (rows.load - rows.brake) / 2.0
+    allowed = (
+        sigma_f
+        * sigma_R
+        * amplitude_torque
+        / (sigma_R * amplitude_torque + sigma_f * jnp.abs(mean_torque))
+    )
     log_n = 3.0 + 3.0 * (sigma_R - amplitude) / (sigma_R - allowed)
     n_fail = jnp.power(10.0, log_n)
     per_row = rows.count / n_fail
@@ -605,7 +648,7 @@ def _fatigue_check(s, m, rows, workbook):
         stress=stress,
         mean=mean,
         amplitude=amplitude,
-        ratio=amplitude / mean,
+        ratio=jnp.broadcast_to(amplitude_torque / mean_torque, mean.shape),
         allowed_amplitude=_nan_unless(ok, allowed),
         cycles_to_failure=_nan_unless(ok, n_fail),
         damage_per_row=_nan_unless(ok, per_row),
