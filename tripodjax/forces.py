@@ -354,7 +354,10 @@ def _solve(R, kinematics, contact, inputs, speed, plunge):
         jnp.broadcast_to(jnp.asarray(value, dtype), shape)
         for value in (1000.0 * inputs.torque, inputs.transverse_x, inputs.transverse_y)
     )
-    normal = jnp.stack(_cramer(columns, rhs))
+    # Behind a barrier, XLA forms each roller's N_k once: else, for a max over the rollers, it
+    # fuses the solve into the reduction and forms every column again for each roller
+    # (roller_load_ratio alone 2.2× as costly, measured).
+    normal = jax.lax.optimization_barrier(jnp.stack(_cramer(columns, rhs)))
 
     def total(x):  # Σ_k N_k x_k
         return jnp.sum(normal * x, axis=0)
