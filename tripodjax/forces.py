@@ -248,12 +248,13 @@ def _pose(R, l, layout_angles, cos_theta, sin_theta, cos_t, sin_t, cos_h, sin_h)
     versine = 2.0 * sin_half_g * sin_half_g  # 1 − cos γ
     # Z_k = c − (R/2) tan γ (2 cos ψ_k + (1 − cos γ) cos 3ψ) (2.6.2, as joint.roller_centres;
     # cos 3ψ_k = cos 3ψ = 4 cos³ψ − 3 cos ψ), c = l (cos γ0 − cos γ) = 2 l sin(γ0 + h) sin h.
-    tan_g = sin_g / cos_g
+    secant = 1.0 / cos_g  # one division: XLA forms each in a pass of its own
+    tan_g = sin_g * secant
     plunge = 2.0 * l * (sin_g0 * cos_h + cos_g0 * sin_h) * sin_h
     z_common = versine * cos_psi * (4.0 * cos_psi * cos_psi - 3.0)
     centres = (plunge - 0.5 * R * tan_g * z_common, -R * tan_g)
     # e = R sin²(γ/2)/cos γ (joint.eccentricity).
-    return (cos_psi, sin_psi), (sin_g, versine), centres, 0.5 * R * versine / cos_g
+    return (cos_psi, sin_psi), (sin_g, versine), centres, 0.5 * R * versine * secant
 
 
 def _pose_and_rates(R, l, layout_angles, angles, rates):
@@ -354,7 +355,10 @@ def _solve(R, kinematics, contact, inputs, speed, plunge):
         jnp.broadcast_to(jnp.asarray(value, dtype), shape)
         for value in (1000.0 * inputs.torque, inputs.transverse_x, inputs.transverse_y)
     )
-    normal = jnp.stack(_cramer(columns, rhs))
+    # Behind a barrier, XLA forms each roller's N_k once: else, for a max over the rollers, it
+    # fuses the solve into the reduction and forms every column again for each roller
+    # (roller_load_ratio alone 2.2× as costly, measured).
+    normal = jax.lax.optimization_barrier(jnp.stack(_cramer(columns, rhs)))
 
     def total(x):  # Σ_k N_k x_k
         return jnp.sum(normal * x, axis=0)
