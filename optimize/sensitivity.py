@@ -38,7 +38,7 @@ import numpy as np
 
 from tripodjax.optimize._compiled import call, latency_bound_jit
 from tripodjax.optimize.problem import bounds, check_result, constraint_names
-from tripodjax.optimize.solver import BOUND_TOLERANCE, Result, _evaluation, evaluate_points
+from tripodjax.optimize.solver import Result, _evaluation, evaluate_points
 from tripodjax.optimize.spec import VARIABLES, Spec, shaft_variable
 
 ACTIVE_MULTIPLIER = 1e-6  # λ above this: the constraint is active
@@ -175,12 +175,13 @@ def _kkt_solve(H, J, Gp, free_mask, active_mask):
     return -np.linalg.solve(K, np.concatenate([fm, am])[:, None] * Gp), cond
 
 
-def _switches(names, lam, margins, active, free, x, lower, upper, G0, H, J, Gp, du):
+def _switches(names, lam, margins, active, free, x, lower, upper, side, G0, H, J, Gp, du):
     """{name: d(name's switching quantity)/dp and its value}: each crosses zero at a switch.
 
     Constraints: λ_i (active) or the margin c_i (inactive, with its total derivative
     ∂c_i/∂p + J_i·dx/dp). Variables: the distance to the nearer bound (off a bound) or the
-    bound's multiplier, the reduced gradient (∇ₓL)_v (on a bound).
+    bound's multiplier, the reduced gradient (∇ₓL)_v (on a bound; ``side`` is +1 on the lower
+    bound, −1 on the upper, 0 off both).
     """
     n = x.size
     dx, dlam = du[:n], du[n:]
@@ -190,12 +191,10 @@ def _switches(names, lam, margins, active, free, x, lower, upper, G0, H, J, Gp, 
         out[name] = (lam[i], dlam[i]) if active[i] else (margins[i], dc[i])
     dgrad = Gp[:n] + H @ dx - J.T @ dlam
     for v, variable in enumerate(free):
-        at_lower = x[v] - lower[v] <= 10 * BOUND_TOLERANCE * (upper[v] - lower[v])
-        at_upper = upper[v] - x[v] <= 10 * BOUND_TOLERANCE * (upper[v] - lower[v])
-        if at_lower or at_upper:  # leaves the bound when its multiplier ±(∇ₓL)_v reaches 0
-            sign = 1.0 if at_lower else -1.0  # ∇ₓL_v ≥ 0 on a lower bound, ≤ 0 on an upper
-            side = "lower" if at_lower else "upper"
-            out[f"{variable}_{side}_bound"] = (sign * G0[v], sign * dgrad[v])
+        if side[v]:  # leaves the bound when its multiplier ±(∇ₓL)_v reaches 0
+            sign = side[v]  # ∇ₓL_v ≥ 0 on a lower bound (+1), ≤ 0 on an upper (−1)
+            bound = "lower" if side[v] > 0 else "upper"
+            out[f"{variable}_{bound}_bound"] = (sign * G0[v], sign * dgrad[v])
         else:  # reaches whichever bound it moves towards
             out[f"{variable}_lower_bound"] = (x[v] - lower[v], dx[v])
             out[f"{variable}_upper_bound"] = (upper[v] - x[v], -dx[v])
@@ -272,9 +271,11 @@ def sensitivities(spec: Spec, result: Result) -> dict:
     x = np.asarray(result.x)
     lower, upper = bounds(structure, values, np)
     width = upper - lower
-    on_bound = (x - lower <= 10 * BOUND_TOLERANCE * width) | (
-        upper - x <= 10 * BOUND_TOLERANCE * width
-    )
+    # on a bound within the solver's tolerance: its KKT residual (the projected step, scaled by
+    # the widths) lets a variable stop that close to a bound it pushes against
+    near = float(values["solver"]["tolerance"]) * width
+    side = np.where(x - lower <= near, 1.0, np.where(upper - x <= near, -1.0, 0.0))
+    on_bound = side != 0
     active = lam > ACTIVE_MULTIPLIER
     inputs = _inputs(structure, values)
     H, J, G0, Gp, dL = _right_hand_side(structure, values, x, lam, inputs)
@@ -298,7 +299,7 @@ def sensitivities(spec: Spec, result: Result) -> dict:
         return {"derivatives": {}, "elasticities": {}, **notes}
     margins = G0[x.size :]  # c − offset: zero on the solver's active set
     switches = _switches(
-        names, lam, margins, active, structure.free, x, lower, upper, G0, H, J, Gp, du
+        names, lam, margins, active, structure.free, x, lower, upper, side, G0, H, J, Gp, du
     )
     labels = _labels(inputs)
     derivatives, elasticities = {}, {}

@@ -55,7 +55,6 @@ from tripodjax.results import RESULTS
 RHO_START = 10.0
 RHO_GROWTH = 4.0
 RHO_MAX = 1e6
-BOUND_TOLERANCE = 1e-6  # a variable this close (relative to its bound width) counts as on the bound
 ARMIJO = 1e-4  # sufficient-decrease constant of the backtracking search
 # Relative size of L's roundoff as the line search judges it: where the decrease Armijo asks
 # for is below this, the slope at the trial point decides (Hager & Zhang's approximate Wolfe).
@@ -69,6 +68,9 @@ SAFETY = 2.0
 # A start that did not converge but whose KKT residual and violation are within this many
 # tolerances ranks with the feasible starts (Ipopt's acceptable_tol / tol, 1e-6 / 1e-8).
 ACCEPTABLE = 100.0
+# The constraints a least-squares multiplier estimate may use: margins within this many
+# tolerances of zero (the augmented Lagrangian keeps its active ones within one).
+NEAR_ACTIVE = 10.0
 _PRIMES = (2, 3, 5, 7, 11, 13, 17)
 
 
@@ -136,15 +138,15 @@ def _zero_evaluation(with_jacobian, x):
 
 
 def _stationarity(x, g, lower, upper):
-    """max |g_j| of a gradient in x scaled by the bound widths, projected on the box: a variable
-    within BOUND_TOLERANCE of a bound counts as on it, and its outward component as zero."""
+    """The projected-gradient step ‖x − P(x − g)‖∞ with x and g scaled by the bound widths
+    (P the projection on the box, Conn, Gould & Toint 1988): a component pushing a variable
+    out of its box counts up to the variable's distance to that bound, so a variable that
+    has come within the tolerance of its bound is stationary there however steep its slope."""
     width = upper - lower
     g = g * width
-    at_lower = (x - lower) <= BOUND_TOLERANCE * width
-    at_upper = (upper - x) <= BOUND_TOLERANCE * width
-    g = jnp.where(at_lower & (g > 0), 0.0, g)
-    g = jnp.where(at_upper & (g < 0), 0.0, g)
-    return jnp.max(jnp.abs(g))
+    towards_lower = jnp.minimum(g, (x - lower) / width)
+    towards_upper = jnp.minimum(-g, (upper - x) / width)
+    return jnp.max(jnp.where(g > 0, towards_lower, towards_upper))
 
 
 def _kkt(x, lam, c, grad_f, jac, lower, upper):
@@ -153,6 +155,27 @@ def _kkt(x, lam, c, grad_f, jac, lower, upper):
     feasibility = jnp.max(jnp.maximum(0.0, -c))
     complementarity = jnp.max(jnp.abs(lam * c))
     return jnp.maximum(stationarity, jnp.maximum(feasibility, complementarity))
+
+
+def _fitted_multipliers(x, c, grad_f, jac, lower, upper, tolerance):
+    """First-order multiplier estimate: λ ≥ 0 minimising ‖(∇f − Jᵀλ) ⊙ width‖ over the
+    variables off their bounds, with λ_i = 0 unless c_i ≤ NEAR_ACTIVE · tolerance; a column
+    whose estimate is negative is dropped and the rest refitted once.
+
+    At a vertex of the constraints, the augmented Lagrangian's update λ − ρ c recovers the
+    multipliers only as fast as c settles within 1/ρ of zero, and the design is there long
+    before (Nocedal & Wright, Numerical Optimization, §17.3; the least-squares estimate
+    of §18.3).
+    """
+    width = upper - lower
+    off_bound = jnp.minimum(x - lower, upper - x) > tolerance * width
+    rows = jnp.where(off_bound[:, None], jac.T * width[:, None], 0.0)
+    target = jnp.where(off_bound, grad_f * width, 0.0)
+    keep = c <= NEAR_ACTIVE * tolerance
+    for _ in range(2):
+        lam = jnp.linalg.lstsq(jnp.where(keep[None, :], rows, 0.0), target)[0]
+        keep = keep & (lam > 0)
+    return jnp.where(keep, lam, 0.0)
 
 
 def _problem(structure, values, z0, x_eval, evaluate_only):
@@ -202,6 +225,7 @@ def _problem(structure, values, z0, x_eval, evaluate_only):
             z=z0,
             evaluation=evaluation,
             lam=jnp.zeros_like(evaluation[1]),
+            multipliers=jnp.zeros_like(evaluation[1]),  # those of the KKT residual in "kkt"
             rho=jnp.asarray(RHO_START, dtype),
             kkt=jnp.asarray(jnp.inf, dtype),
             value=jnp.asarray(jnp.inf, dtype),
@@ -250,6 +274,12 @@ def _problem(structure, values, z0, x_eval, evaluate_only):
         grow = jnp.logical_and(jnp.logical_not(first), violated)
         rho_new = jnp.where(grow, jnp.minimum(s["rho"] * RHO_GROWTH, RHO_MAX), s["rho"])
         kkt = _kkt(to_x(z), lam_new, c, grad_f, jac, lower, upper)
+        # the KKT test also with the multipliers fitted at z (see _fitted_multipliers)
+        fitted = _fitted_multipliers(to_x(z), c, grad_f, jac, lower, upper, tolerance)
+        kkt_fitted = _kkt(to_x(z), fitted, c, grad_f, jac, lower, upper)
+        better = kkt_fitted < kkt
+        multipliers = jnp.where(better, fitted, lam_new)
+        kkt = jnp.where(better, kkt_fitted, kkt)
         kkt = jnp.where(jnp.isfinite(kkt), kkt, jnp.inf)
         done = inner_over & ((kkt <= tolerance) | (s["k"] >= structure.max_outer))
         done = done | evaluate_only
@@ -286,6 +316,7 @@ def _problem(structure, values, z0, x_eval, evaluate_only):
             lam=lam,
             rho=rho,
             kkt=jnp.where(inner_over, kkt, s["kkt"]),
+            multipliers=jnp.where(inner_over, multipliers, s["multipliers"]),
             value=value,
             grad=grad,
             direction=jnp.where(fresh, direction, s["direction"]),
@@ -304,7 +335,7 @@ def _problem(structure, values, z0, x_eval, evaluate_only):
             gradient=grad_f,
             jacobian=jac,
             x=to_x(s["z"]),
-            lam=s["lam"],
+            lam=s["multipliers"],
             objective=f,
             margins=c + offset,
             kkt=s["kkt"],
