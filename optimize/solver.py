@@ -173,7 +173,12 @@ def _fitted_multipliers(x, c, grad_f, jac, lower, upper, tolerance):
     target = jnp.where(off_bound, grad_f * width, 0.0)
     keep = c <= NEAR_ACTIVE * tolerance
     for _ in range(2):
-        lam = jnp.linalg.lstsq(jnp.where(keep[None, :], rows, 0.0), target)[0]
+        a = jnp.where(keep[None, :], rows, 0.0)
+        normal = a.T @ a
+        # a dropped column's row of the normal equations is λ_i = 0; a tiny ridge on the
+        # kept ones for constraints whose gradients coincide
+        ridge = jnp.where(keep, 1e-12 * jnp.trace(normal), 1.0)
+        lam = jnp.linalg.solve(normal + jnp.diag(ridge), a.T @ target)
         keep = keep & (lam > 0)
     return jnp.where(keep, lam, 0.0)
 
