@@ -145,7 +145,7 @@ reading = "consistent"      # "consistent" or "workbook" (the sheet's readings, 
 # The outboard fixed ball joint ("Fixed FR", seed fig. 4.3.10, second column; tripodjax.outboard):
 # its Hertz static safety (M_s / M_max, required ≥ loads.shock_factor like the tripod's) and its
 # life under its working conditions (required ≥ life.required_km), in every report.
-n_balls = 6
+n_balls = 6                 # 3 to 24, fitting on the pitch circle: d < 2 PCR sin(π/n_balls)
 ball_diameter_mm = 18.256
 pcr_mm = 29.958             # pitch-centre radius
 conformity = 1.003          # transverse conformity Ψ = 2 R_g / d
@@ -1242,6 +1242,8 @@ def _conditions(table, section):
             f"{where} lists have lengths angle_deg {len(angles)}, share {len(shares)}, "
             f"names {len(names)}; they must have one length"
         )
+    if len(set(names)) != len(names):  # the report's tables are keyed by them
+        raise SpecError(f"{where}.names = {names!r} must not repeat a name")
     return np.radians(np.asarray(angles)), np.asarray(shares), tuple(names)
 
 
@@ -1327,6 +1329,11 @@ def _outboard(table):
             ("C_s", ""),
         )
     }
+    try:
+        keys = ("outboard.ball_diameter_mm", "outboard.pcr_mm", "outboard.n_balls")
+        outboard.check_balls_fit(numbers["ball_diameter_mm"], numbers["pcr_mm"], n_balls, keys)
+    except ValueError as error:
+        raise SpecError(str(error)) from None
     numbers["conformity"] = _number(table, "outboard", "conformity", MIN_CONFORMITY)
     numbers["longitudinal_conformity"] = _number(
         table, "outboard", "longitudinal_conformity", -1.0, 1.0, low_open=True

@@ -230,6 +230,14 @@ LISTS = (
         ("[outboard]\nlongitudinal_conformity = -1.0", "outboard.longitudinal_conformity = -1.0"),
         ("[outboard]\npressure_angle_deg = 0.0", "outboard.pressure_angle_deg = 0.0"),
         ("[outboard.conditions]\nshare = [1.0]", "outboard.conditions lists have lengths"),
+        (
+            '[outboard.conditions]\nnames = ["a", "b", "c", "d", "a"]',
+            "outboard.conditions.names = ['a', 'b', 'c', 'd', 'a'] must not repeat a name",
+        ),
+        (
+            '[life.conditions]\nnames = ["a", "a", "c", "d", "e"]',
+            "life.conditions.names = ['a', 'a', 'c', 'd', 'e'] must not repeat a name",
+        ),
         ("[forces]\nplunge_speed_mm_s = 0.0", "forces.plunge_speed_mm_s = 0.0 is not allowed"),
         ("[forces]\ncontact_angle_deg = 90.0", "forces.contact_angle_deg = 90.0 is not allowed"),
         ("[forces]\nmu_trunnion = -0.1", "forces.mu_trunnion = -0.1 is not allowed"),

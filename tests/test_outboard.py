@@ -369,3 +369,34 @@ def test_the_life_takes_one_joint_and_vmaps_over_several():
     for d, expected in zip(diameters, km, strict=True):
         one = outboard.joint_life(outboard.FixedJoint(**{**JOINT, "d": d}), spectrum, conditions)
         assert float(one.km) == pytest.approx(float(expected), rel=1e-12)
+
+
+def test_the_balls_fit_on_their_pitch_circle():
+    """Adjacent ball centres are 2 R sin(π/n) apart: a ball at least that large overlaps its
+    neighbours. The workbook's joint (d = 18.256 on R = 29.958 mm) holds 10 balls, not 11;
+    min_ball_diameter, which sizes d and R, takes no d and R from the joint."""
+    joint = outboard.FixedJoint(**JOINT)
+    limit = 2 * JOINT["R"] * math.sin(math.pi / 11)  # 17.09 mm < d
+    spectrum = life.LoadSpectrum(np.array([1154.0]), np.array([100.0]), np.array([28.0]), [1.0])
+    conditions = life.WorkingConditions(np.radians(ANGLES_DEG), SHARES)
+    expected = (
+        f"FixedJoint.d = {JOINT['d']!r} mm is not allowed for 11 balls on FixedJoint.R = "
+        f"{JOINT['R']!r} mm: FixedJoint.d < 2·FixedJoint.R·sin(π/n_balls) = {limit:.6g} mm "
+        "(neighbouring balls would overlap)"
+    )
+    for call in (
+        lambda: outboard.capacities(joint, n_balls=11),
+        lambda: outboard.static_safety(joint, 1154.0, n_balls=11),
+        lambda: outboard.joint_life(joint, spectrum, conditions, n_balls=11),
+    ):
+        with pytest.raises(ValueError) as info:
+            call()
+        assert str(info.value) == expected
+    assert np.isfinite(float(outboard.capacities(joint, n_balls=10).M_s))
+    outboard.min_ball_diameter(joint, 1154.0, R_over_d=1.65, C_s=1.35, n_balls=11)
+    # on the limit (touching balls) is refused, just inside it allowed; arrays name the index
+    touching = outboard.FixedJoint(**{**JOINT, "d": np.array([10.0, limit])})
+    with pytest.raises(ValueError, match=r"^FixedJoint\.d\[1\] = .* 11 balls on FixedJoint\.R = "):
+        outboard.capacities(touching, n_balls=11)
+    inside = outboard.FixedJoint(**{**JOINT, "d": limit * (1 - 1e-9)})
+    assert np.isfinite(float(outboard.capacities(inside, n_balls=11).M_s))

@@ -202,6 +202,12 @@ def test_tables_hold_the_reports_numbers(reports):
             "outboard.n_balls = 2 is not allowed: an integer from 3 to 24",
         ),
         (
+            "[outboard]\nn_balls = 11",  # 2 R sin(π/11) = 16.880 mm < d: neighbours overlap
+            "outboard.ball_diameter_mm = 18.256 mm is not allowed for 11 balls on outboard.pcr_mm "
+            "= 29.958 mm: outboard.ball_diameter_mm < 2·outboard.pcr_mm·sin(π/outboard.n_balls) "
+            "= 16.8803 mm (neighbouring balls would overlap)",
+        ),
+        (
             "[outboard]\npressure_angle_deg = 90.0",
             "outboard.pressure_angle_deg = 90.0 is not allowed: a finite number > 0° and < 90°",
         ),

@@ -57,6 +57,7 @@ import math
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax.typing import ArrayLike
 
 from tripodjax import hertz, life
@@ -68,6 +69,7 @@ from tripodjax._checks import (
     check_non_negative,
     check_positive,
     check_range,
+    check_real,
     checked_pytree_dataclass,
 )
 
@@ -75,6 +77,7 @@ __all__ = [
     "READINGS",
     "FixedJoint",
     "capacities",
+    "check_balls_fit",
     "joint_life",
     "min_ball_diameter",
     "revolution_mean_speed",
@@ -150,6 +153,32 @@ def _check_n_balls(n_balls, name="n_balls"):
     return check_integer(name, n_balls, minimum=MIN_BALLS)
 
 
+def check_balls_fit(d, R, n_balls, names=("FixedJoint.d", "FixedJoint.R", "n_balls")):
+    """The balls fit on their pitch circle: adjacent centres, 2 R sin(π/n) apart, are more
+    than a ball's diameter apart (else neighbours overlap), for concrete ``d`` and ``R`` [mm];
+    ``names`` name d, R and the count in the error (the spec gives its keys)."""
+    arrays = [check_real(name, value) for name, value in zip(names[:2], (d, R), strict=True)]
+    if any(a is None for a in arrays):
+        return
+    shapes = [a.shape for a in arrays]
+    d, R = np.broadcast_arrays(*arrays)
+    spacing = 2.0 * R * math.sin(math.pi / n_balls)
+    overlap = ~(d < spacing)
+    if np.any(overlap):
+        i = tuple(int(j) for j in np.argwhere(overlap)[0])
+        # each array's own index of the first overlap (a broadcast axis at 0)
+        own = [
+            [j if n > 1 else 0 for j, n in zip(i[len(i) - len(s) :], s, strict=True)]
+            for s in shapes
+        ]
+        at = [f"[{','.join(map(str, k))}]" if k else "" for k in own]
+        raise ValueError(
+            f"{names[0]}{at[0]} = {float(d[i])!r} mm is not allowed for {n_balls} balls on "
+            f"{names[1]}{at[1]} = {float(R[i])!r} mm: {names[0]} < 2·{names[1]}·sin(π/{names[2]}) "
+            f"= {float(spacing[i]):.6g} mm (neighbouring balls would overlap)"
+        )
+
+
 def _common(joint, n_balls):
     _check_n_balls(n_balls)
     return dict(
@@ -160,6 +189,12 @@ def _common(joint, n_balls):
         pressure_angle=joint.pressure_angle,
         helix_angle=joint.oblique_angle,
     )
+
+
+def _check_fit(joint, n_balls):
+    """The joint's d and R against its ball count (`check_balls_fit`)."""
+    _check_n_balls(n_balls)
+    check_balls_fit(joint.d, joint.R, n_balls)
 
 
 def _table_factor(joint, reading):
@@ -177,13 +212,15 @@ def capacities(
 ) -> hertz.Capacities:
     """M_s, M_d, M_sd [N·m] of the joint ([`hertz.capacities`][tripodjax.hertz.capacities]).
 
-    ``n_balls`` an integer ≥ 3; ``gamma`` the working angle [rad] for M_d and
+    ``n_balls`` an integer ≥ 3 whose balls fit on the pitch circle (d < 2 R sin(π/n_balls),
+    `check_balls_fit`); ``gamma`` the working angle [rad] for M_d and
     M_sd; ``reading`` ``"consistent"`` (exact Hertz μν) or ``"workbook"`` (μν
     at cos τ truncated to 10⁻³, the book table's step: the sheet's 2.540 and
     2.650; see the module docstring). The workbook reading is for reproducing the
     sheet: its μν steps with cos τ, so its derivatives hold the table's value fixed.
     """
     check_instance("joint", joint, FixedJoint, "an outboard.FixedJoint")
+    _check_fit(joint, n_balls)
     factor = _table_factor(joint, reading)
     exact = hertz.capacities(
         joint.d,
@@ -265,6 +302,7 @@ def joint_life(
       the same sheet is not this reading (docs/physics.md).
     """
     check_instance("joint", joint, FixedJoint, "an outboard.FixedJoint")
+    _check_fit(joint, n_balls)
     for field in dataclasses.fields(joint):
         shape = jnp.shape(getattr(joint, field.name))
         if shape:
