@@ -551,3 +551,20 @@ def test_a_solid_section_hardened_to_its_centre(sheet):
         below = (float(checks(26.0, 5.6, 7.4)[i]) - float(checks(26.0, 5.6, 7.4 - h)[i])) / h
         assert all(np.isfinite(float(g)) for g in grads), i
         assert float(grads[2]) == pytest.approx(below, rel=1e-4, abs=1e-9), i
+
+
+@pytest.mark.parametrize("h, t", [(2.5, 3.5), (0.0, 3.5), (2.5, 0.0), (0.0, 0.0)])
+def test_the_outer_fibres_strength_is_the_profiles_below_a_step(chain, h, t):
+    """σ_R at r_o in fatigue is strength_profile's at r_o (the value below a step where h or t
+    is 0): an unhardened section (h = t = 0, r_o = r_TR) is the core's at both radii, with
+    equal damage; it took the surface's 2180 MPa at r_o."""
+    rows = shaft.fatigue_cycles(*chain)
+    section = shaft.Section(30.685, h, t)
+    material = shaft.Material(**MATERIAL)
+    check = shaft.fatigue_check(section, material, rows)
+    r_o = 30.685 / 2
+    profile = float(shaft.strength_profile(section, material, r_o))
+    assert float(check.uts[0]) == pytest.approx(profile, rel=1e-12)
+    if h == t == 0.0:
+        assert profile == MATERIAL["core_uts"]
+        assert float(check.damage[0]) == pytest.approx(float(check.damage[1]), rel=1e-12)

@@ -554,7 +554,8 @@ class FatigueCheck:
 
     Attributes:
         radius: r_o and r_TR [mm].
-        uts: σ_R there [MPa] (per the reading at r_TR).
+        uts: σ_R there [MPa] (at r_o the profile's, below a step where h or t is 0; per
+            the reading at r_TR).
         fatigue_limit: σ_f = σ_R / q [MPa].
         shear: τ = T r / J of the row's torque [MPa].
         stress: σ = √3 τ [MPa].
@@ -613,7 +614,13 @@ def _fatigue_check(s, m, rows, workbook):
     r_tr = r_o - s.hardened_depth - s.transition_depth
     core = jnp.asarray(m.core_uts) * (1.0 + m.depth_drop if workbook else 1.0)
     radius = jnp.stack(jnp.broadcast_arrays(r_o, r_tr))
-    uts = jnp.stack(jnp.broadcast_arrays(jnp.asarray(m.surface_uts, core.dtype), core))
+    # σ_R at r_o is the profile's there, below a step: (1 − Δ) σ_R,s without a hardened depth,
+    # the core's without a layer (an unhardened section)
+    surface = jnp.asarray(m.surface_uts, core.dtype)
+    h, t = jnp.asarray(s.hardened_depth), jnp.asarray(s.transition_depth)
+    at_h = surface * (1.0 - m.depth_drop)
+    outer = jnp.where(h > 0, surface, jnp.where(t > 0, at_h, core))
+    uts = jnp.stack(jnp.broadcast_arrays(outer, core))
     fatigue_limit = uts / m.fatigue_ratio
     per_mm = 1000.0 * SQRT3 * radius / polar_moment(s)  # σ per N·m at each radius
 
