@@ -162,7 +162,8 @@ def check_balls_fit(d, R, n_balls, names=("FixedJoint.d", "FixedJoint.R", "n_bal
         return
     shapes = [a.shape for a in arrays]
     d, R = np.broadcast_arrays(*arrays)
-    spacing = 2.0 * R * math.sin(math.pi / n_balls)
+    with np.errstate(over="ignore"):  # a spacing beyond the dtype's range is inf: any d fits
+        spacing = 2.0 * R * math.sin(math.pi / n_balls)
     overlap = ~(d < spacing)
     if np.any(overlap):
         i = tuple(int(j) for j in np.argwhere(overlap)[0])
