@@ -1,13 +1,15 @@
-"""Calling the optimiser's compiled functions, optionally through serialized exports.
+"""Calling the optimiser's compiled functions, optionally through a cache of executables.
 
 The library calls its jit-compiled functions directly. The ``optimize-joint``
-command wraps its work in [`export_cache`][tripodjax.optimize._compiled.export_cache]:
-each function is then exported once (``jax.export``) per spec structure, argument
-shapes, versions and package source, and a later process loads that export instead
-of tracing the Python again; with JAX's persistent compilation cache beside it, a
-warm command neither traces nor compiles. Every optimiser program runs for milliseconds a
-call and is compiled for latency (``tripodjax._compile.LATENCY_BOUND``), exported or not. An entry holds its own key and is checked
-against the call's arguments when loaded; any mismatch removes it and exports again.
+command wraps its work in [`executable_cache`][tripodjax.optimize._compiled.executable_cache]:
+each function is then compiled once per spec structure, argument shapes, versions,
+device and package source, and its executable kept (``jax.experimental.serialize_executable``);
+a later process loads it and neither traces, lowers nor compiles (where JAX's persistent
+compilation cache, keyed on the lowered program, would have it trace and lower each
+function again: 1.5 s of a warm run, measured). Every optimiser program runs for
+milliseconds a call and is compiled for latency (``tripodjax._compile.LATENCY_BOUND``),
+cached or not. An entry holds its own key and is checked against the call's arguments
+when called; any mismatch removes it and compiles again.
 """
 
 import contextlib
@@ -16,15 +18,19 @@ import functools
 import hashlib
 import os
 import pathlib
+import pickle
 import tempfile
+import threading
 
 import jax
+import jaxlib.version
+from jax.experimental import serialize_executable
 
 from tripodjax._compile import latency_bound_jit
 
-__all__ = ["batch_rows", "call", "export_cache", "latency_bound_jit", "rows_per_call"]
+__all__ = ["batch_rows", "call", "executable_cache", "latency_bound_jit", "rows_per_call"]
 
-_CACHE = contextvars.ContextVar("tripodjax_export_cache", default=None)
+_CACHE = contextvars.ContextVar("tripodjax_executable_cache", default=None)
 _ROWS = contextvars.ContextVar("tripodjax_batch_rows", default=None)
 
 
@@ -48,7 +54,7 @@ def rows_per_call(rows):
 
 
 def call(jitted, static, *args):
-    """``jitted(static, *args)``, through the active export cache if there is one."""
+    """``jitted(static, *args)``, through the active executable cache if there is one."""
     cache = _CACHE.get()
     if cache is None:
         return jitted(static, *args)
@@ -56,9 +62,9 @@ def call(jitted, static, *args):
 
 
 @contextlib.contextmanager
-def export_cache(directory):
-    """Within the block, compiled calls go through exports kept in ``directory``."""
-    token = _CACHE.set(_ExportCache(directory))
+def executable_cache(directory):
+    """Within the block, compiled calls go through executables kept in ``directory``."""
+    token = _CACHE.set(_ExecutableCache(directory))
     try:
         yield
     finally:
@@ -67,7 +73,7 @@ def export_cache(directory):
 
 @functools.cache
 def _source_digest():
-    """A digest of the package's own source: a changed file never loads a stale export."""
+    """A digest of the package's own source: a changed file never loads a stale executable."""
     import tripodjax
 
     digest = hashlib.sha256()
@@ -79,7 +85,7 @@ def _source_digest():
     return digest.hexdigest()
 
 
-class _ExportCache:
+class _ExecutableCache:
     def __init__(self, directory):
         self.directory = pathlib.Path(directory)
         self.loaded = {}
@@ -94,8 +100,10 @@ class _ExportCache:
                 str(treedef),
                 signature,
                 jax.__version__,
+                jaxlib.version.__version__,
                 jax.config.jax_enable_x64,
                 jax.default_backend(),
+                [d.device_kind for d in jax.local_devices()],
                 _source_digest(),
             )
         )
@@ -103,38 +111,35 @@ class _ExportCache:
 
     def call(self, jitted, static, *args):
         key = self._key(jitted, static, args)
-        exported = self.loaded.get(key)
-        from_disk = False
-        if exported is None:
-            exported = self._load(key, args)
-            from_disk = exported is not None
-            if not from_disk:
-                exported = self._export(key, jitted, static, args)
-            self.loaded[key] = exported
-        if exported is False:  # this function cannot be exported here: call it directly
-            return jitted(static, *args)
-        if not from_disk:
-            return exported(*args)
-        try:
-            return exported(*args)
-        except Exception:  # an entry that passed the checks and still does not fit: replace it
-            self._remove(key)
-            self.loaded[key] = exported = self._export(key, jitted, static, args)
-            return jitted(static, *args) if exported is False else exported(*args)
+        compiled = self.loaded.get(key)
+        if compiled is None:
+            compiled = self._load(key)
+            if compiled is not None:
+                try:
+                    out = compiled(*args)
+                except TypeError:  # an entry that passed the checks and still does not fit
+                    self._remove(key)
+                else:
+                    self.loaded[key] = compiled
+                    return out
+            self.loaded[key] = compiled = self._compile(key, jitted, static, args)
+        return compiled(*args)
 
     def _path(self, key):
-        return self.directory / f"{key}.jaxexport"
+        return self.directory / f"{key}.jaxexec"
 
     def _remove(self, key):
         with contextlib.suppress(OSError):
             self._path(key).unlink()
 
-    def _load(self, key, args):
-        """The entry under ``key`` if it is this key's export for these arguments, else None.
+    def _load(self, key):
+        """The executable under ``key``, loaded, or None (absent, another key's, corrupt).
 
-        An entry holds its own key before the serialized export; a file of another key
-        (copied, swapped or truncated), one that does not deserialize, or one whose input
-        tree and shapes are not those of ``args`` is removed (exported again by the caller).
+        An entry holds its own key, then the pickled input and output trees and the
+        serialized executable. A file of another key (copied, swapped or truncated) or one
+        that does not load is removed (compiled again by the caller). Unpickling runs code
+        named by the file, as loading an executable runs its machine code: the cache is
+        trusted as the package's own files are (the user's own folder).
         """
         path = self._path(key)
         try:
@@ -145,40 +150,71 @@ class _ExportCache:
         try:
             if not data.startswith(header):
                 raise ValueError("the entry is not this key's")
-            exported = jax.export.deserialize(bytearray(data[len(header) :]))
-            leaves, treedef = jax.tree_util.tree_flatten((args, {}))
-            signature = [(tuple(jax.numpy.shape(a)), jax.numpy.result_type(a)) for a in leaves]
-            stored = [(tuple(a.shape), a.dtype) for a in exported.in_avals]
-            if exported.in_tree != treedef or stored != signature:
-                raise ValueError("the entry takes other arguments")
-        except Exception:  # corrupt, from another jaxlib, another key's, other arguments
+            in_tree, out_tree, executable = pickle.loads(data[len(header) :])
+            _linear_algebra_ready()
+            return serialize_executable.deserialize_and_load(executable, in_tree, out_tree)
+        except Exception:  # corrupt, from another jaxlib, another key's
             self._remove(key)
             return None
-        return _runner(exported)
 
-    def _export(self, key, jitted, static, args):
+    def _compile(self, key, jitted, static, args):
+        """``jitted`` compiled for ``static`` and the arguments' shapes, and kept under ``key``."""
+        _watch_persistent_cache_hits()
+        _HITS.count = 0
+        compiled = jitted.lower(static, *args).compile()
+        if _HITS.count:  # JAX's persistent cache answered: its executable does not serialize
+            return compiled  # whole again (kernels missing when loaded, seen): not kept
         try:
-            exported = jax.export.export(jitted)(static, *args)
-            data = exported.serialize()
-        except Exception:  # e.g. no flatbuffers package: call the function directly
-            return False
+            executable, in_tree, out_tree = serialize_executable.serialize(compiled)
+            data = pickle.dumps((in_tree, out_tree, executable))
+        except Exception:  # an executable that cannot be serialized here: not kept
+            return compiled
         try:
             self.directory.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(prefix=".export.", dir=self.directory)
+            fd, tmp = tempfile.mkstemp(prefix=".entry.", dir=self.directory)
             with os.fdopen(fd, "wb") as f:
                 f.write(_header(key))
                 f.write(data)
             os.replace(tmp, self._path(key))
         except OSError:
             pass  # a read-only cache only costs time
-        return _runner(exported)
+        return compiled
 
 
-def _runner(exported):
-    """A function calling ``exported``, compiled as the function it was exported from was."""
-    return latency_bound_jit(exported.call)
+_HITS = threading.local()  # persistent-cache hits of JAX in this thread, since last reset
+
+
+@functools.cache
+def _watch_persistent_cache_hits():
+    """Count JAX's persistent-cache hits per thread (a listener, registered once).
+
+    An executable that JAX's persistent cache returned serializes without its kernels (jaxlib
+    0.10.2: "Function ... not found" when the entry is loaded and called); ``optimize-joint``
+    turns that cache off, a process that keeps it on (tests, a user's setting) stores none.
+    """
+
+    def count(event, **_):
+        if event == "/jax/compilation_cache/cache_hits":
+            _HITS.count = getattr(_HITS, "count", 0) + 1
+
+    jax.monitoring.register_event_listener(count)
+
+
+@functools.cache
+def _linear_algebra_ready():
+    """Load the LAPACK kernels an executable may call on the CPU (LU factorisations).
+
+    JAX loads them when it lowers a linear-algebra operation; a process that only loads
+    executables lowers none, and their kernels would be called unloaded (a segmentation
+    fault, seen). JAX's own function where it has it, else a small LU lowered (not compiled).
+    """
+    initialize = getattr(getattr(jax._src.lax, "linalg", None), "initialize_lapack", None)
+    if initialize is not None:
+        initialize()
+    else:
+        jax.jit(jax.lax.linalg.lu).lower(jax.numpy.eye(2))
 
 
 def _header(key):
     """What an entry starts with: the format and its own key (checked when it is loaded)."""
-    return f"tripodjax-export 1 {key}\n".encode()
+    return f"tripodjax-executable 1 {key}\n".encode()

@@ -274,17 +274,12 @@ def _compute(args, given, command_line):
 
     import jax
 
-    # The command's own choice: keep every compiled executable for the next run (compiled for
-    # latency, most of the report's programs take under 0.5 s, JAX's default threshold, and
-    # were compiled again by every warm run).
-    jax.config.update("jax_compilation_cache_dir", _cache_dir())
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
-    if jax.default_backend() == "cpu":
-        # JAX's default also names a GPU autotuning folder inside the cache in every entry's
-        # key: a cache copied or moved to another path would miss. Unused on CPU.
-        jax.config.update("jax_persistent_cache_enable_xla_caches", "none")
+    # The command keeps its programs' executables itself (`executable_cache`); JAX's
+    # persistent cache (on where JAX_COMPILATION_CACHE_DIR is set) would trace and lower each
+    # program again, and an executable it returns cannot be kept (see `_compiled`).
+    jax.config.update("jax_enable_compilation_cache", False)
     from tripodjax.optimize import document, report, structural
-    from tripodjax.optimize._compiled import export_cache, rows_per_call
+    from tripodjax.optimize._compiled import executable_cache, rows_per_call
     from tripodjax.optimize.problem import (
         constraint_landscape,
         evaluate,
@@ -322,7 +317,7 @@ def _compute(args, given, command_line):
     pool = ThreadPoolExecutor(max_workers=1)
     rows = len(scenarios) * spec.structure.starts
     try:
-        with export_cache(os.path.join(_cache_dir(), "exports")), rows_per_call(rows):
+        with executable_cache(os.path.join(_cache_dir(), "executables")), rows_per_call(rows):
             warm = None
             if full_reference is not None:
                 run_in_context = contextvars.copy_context().run
@@ -340,6 +335,16 @@ def _compute(args, given, command_line):
                 warm.result()
                 design = {k: result.design[k] for k in spec.structure.free}
                 full = {"solver": "newton", "n_theta": 360, **evaluate(full_reference, design)}
+            try:
+                life = life_report(spec, result.design)
+                forces = forces_report(spec, result.design)
+            except ValueError:  # a design outside the domain (a failed solve): no life, no forces
+                life = forces = None
+            try:
+                halfshaft = structural.halfshaft_report(spec, result.design)
+            except ValueError:  # no [vehicle] (the report's halfshaft section says why it is
+                # absent) or a design outside the domain (a failed solve)
+                halfshaft = None
     finally:
         pool.shutdown(wait=False, cancel_futures=True)
     figures = {
@@ -351,17 +356,8 @@ def _compute(args, given, command_line):
         figures["pareto_front.png"] = report.figure_pareto(result, pareto)
     if result.sensitivities is not None and result.sensitivities["elasticities"]:
         figures["sensitivities.png"] = report.figure_tornado(result)
-    try:
-        life = life_report(spec, result.design)
+    if life is not None:
         figures["damage.png"] = report.figure_damage(life)
-        forces = forces_report(spec, result.design)
-    except ValueError:  # a design outside the domain (a failed solve): no life, no forces
-        life = forces = None
-    try:
-        halfshaft = structural.halfshaft_report(spec, result.design)
-    except ValueError:  # no [vehicle] (the report's halfshaft section says why it is absent) or
-        # a design outside the domain (a failed solve)
-        halfshaft = None
     if life is not None or halfshaft is not None:
         figures["life_conditions.png"] = report.figure_life_conditions(life, halfshaft)
     if halfshaft is not None:

@@ -630,7 +630,8 @@ def evaluate(spec: Spec, design: Mapping[str, float]) -> dict:
     structure = check_spec(spec).structure
     values, x = design_values(spec, design)
     with jax.enable_x64(True):  # the design problem runs in float64; scoped to this call
-        objective, margins, q, code = call(_evaluate, structure, values, jnp.asarray(x))
+        out = call(_evaluate, structure, values, np.asarray(x))
+        objective, margins, q, code = jax.tree_util.tree_map(np.asarray, out)
         objective, margins = float(objective), [float(m) for m in margins]
         q = {k: float(v) for k, v in q.items()}
         life_shares = _life_report(structure, values, x)
@@ -668,7 +669,8 @@ def gear_names(values):
 
 def _life_report(structure, values, x):
     """The life of design x, its damage shares and M_max (the ``life`` section of the report)."""
-    result, forward, backward = call(_life, structure, values, jnp.asarray(x))
+    out = call(_life, structure, values, np.asarray(x))
+    result, forward, backward = jax.tree_util.tree_map(np.asarray, out)
     v = values["life"]
     conditions = [
         {
@@ -782,7 +784,7 @@ def forces_report(spec: Spec, design: Mapping[str, float]) -> dict:
     structure = check_spec(spec).structure
     values, x = design_values(spec, design)
     with jax.enable_x64(True):
-        out = _forces_report(structure, values, x)
+        out = call(_forces_report, structure, values, x)
         torque = float(values["loads"]["gaf_torque"])
         R = float(full_design(structure, values, x)["R"])
         f = values["forces"]

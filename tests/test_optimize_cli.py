@@ -49,7 +49,7 @@ def cli_run(tmp_path_factory):
 
 def copy_of_the_runs_cache(destination):
     """A copy of the run's cache (conftest), made after ``cli_run``: it holds every program of
-    the default run, and only exports of the installed source. Entries another worker
+    the default run, and only executables of the installed source. Entries another worker
     writes meanwhile may be missing from it (a file named in the listing and gone)."""
 
     def copy_present(source, target):
@@ -360,30 +360,30 @@ def test_cli_report_write_failure_exits_3_and_prints_the_design(tmp_path):
     assert not any(p.name.startswith(".") for p in out.iterdir())  # no temporary files left
 
 
-def _swap_entries(exports):
-    """Swap the contents of the two largest export entries (valid exports under wrong keys)."""
-    entries = sorted(exports.glob("*.jaxexport"), key=lambda p: p.stat().st_size)[-2:]
-    assert len(entries) == 2, list(exports.iterdir())
+def _swap_entries(executables):
+    """Swap the contents of the two largest entries (valid executables under wrong keys)."""
+    entries = sorted(executables.glob("*.jaxexec"), key=lambda p: p.stat().st_size)[-2:]
+    assert len(entries) == 2, list(executables.iterdir())
     first, second = (p.read_bytes() for p in entries)
     entries[0].write_bytes(second)
     entries[1].write_bytes(first)
     return entries
 
 
-def _entries_hold_their_keys(exports):
+def _entries_hold_their_keys(executables):
     return all(
-        p.read_bytes().startswith(f"tripodjax-export 1 {p.stem}\n".encode())
-        for p in exports.glob("*.jaxexport")
+        p.read_bytes().startswith(f"tripodjax-executable 1 {p.stem}\n".encode())
+        for p in executables.glob("*.jaxexec")
     )
 
 
-def test_export_cache_replaces_a_swapped_or_corrupt_entry(tmp_path):
+def test_executable_cache_replaces_a_swapped_or_corrupt_entry(tmp_path):
     import functools
 
     import jax
     import jax.numpy as jnp
 
-    from tripodjax.optimize._compiled import call, export_cache
+    from tripodjax.optimize._compiled import call, executable_cache
 
     @functools.partial(jax.jit, static_argnums=0)
     def scaled(factor, x):
@@ -399,22 +399,88 @@ def test_export_cache_replaces_a_swapped_or_corrupt_entry(tmp_path):
             float(call(summed, 2, jnp.arange(3.0), jnp.float32(1.0))),
         )
 
-    with export_cache(tmp_path):
+    with executable_cache(tmp_path):
         assert calls() == (3.0, 5.0)
     _swap_entries(tmp_path)
-    with export_cache(tmp_path):  # a new cache (process): it loads the swapped files
+    with executable_cache(tmp_path):  # a new cache (process): it loads the swapped files
         assert calls() == (3.0, 5.0)
     assert _entries_hold_their_keys(tmp_path)
-    for path in tmp_path.glob("*.jaxexport"):  # truncated entries
+    for path in tmp_path.glob("*.jaxexec"):  # truncated entries
         path.write_bytes(path.read_bytes()[:100])
-    with export_cache(tmp_path):
+    with executable_cache(tmp_path):
         assert calls() == (3.0, 5.0)
     assert _entries_hold_their_keys(tmp_path)
+
+
+_LOADS_AN_LU = """
+import functools, sys
+import jax, jax.numpy as jnp, jax.monitoring
+from tripodjax.optimize._compiled import call, executable_cache
+compiled = []
+jax.monitoring.register_event_time_span_listener(
+    lambda event, *_, **kw: compiled.append(kw.get("fun_name")) if "backend_compile" in event else None
+)
+@functools.partial(jax.jit, static_argnums=0)
+def solved(n, a, b):
+    return jnp.linalg.solve(a + n * jnp.eye(3), b)
+with executable_cache(sys.argv[1]):
+    x = call(solved, 1.0, jnp.diag(jnp.arange(3.0)), jnp.ones(3))
+print(list(map(float, x)), "solved" in str(compiled))
+"""
+
+
+def test_a_process_that_only_loads_an_executable_runs_its_lapack_kernels(tmp_path):
+    """The second process loads the LU's executable and lowers nothing: JAX has not loaded its
+    LAPACK kernels for it (without ``_linear_algebra_ready``: a segmentation fault)."""
+    command = [sys.executable, "-P", "-c", _LOADS_AN_LU, str(tmp_path)]
+    first, second = (
+        subprocess.run(command, capture_output=True, text=True, timeout=300) for _ in range(2)
+    )
+    assert first.returncode == 0, first.stderr
+    assert first.stdout.split() == ["[1.0,", "0.5,", "0.3333333432674408]", "True"]
+    assert second.returncode == 0, second.stderr
+    assert second.stdout.split() == ["[1.0,", "0.5,", "0.3333333432674408]", "False"]
+
+
+_WITH_JAX_CACHE = """
+import functools, sys
+import jax, jax.numpy as jnp
+from tripodjax._compile import latency_bound_jit
+from tripodjax.optimize._compiled import call, executable_cache
+jax.config.update("jax_compilation_cache_dir", sys.argv[1])
+jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+@functools.partial(latency_bound_jit, static_argnums=0)
+def f(n, a, b):
+    return jnp.where(a > 0, b / a, n * b).sum() + jnp.sin(a).prod()
+args = (2.0, jnp.arange(1.0, 4.0), jnp.ones(3))
+if sys.argv[3] == "plain":
+    print(float(f(*args)))
+else:
+    with executable_cache(sys.argv[2]):
+        print(float(call(f, *args)))
+"""
+
+
+def test_an_executable_from_jaxs_persistent_cache_is_not_kept(tmp_path):
+    """JAX's persistent cache answers the second process's compile: that executable is not
+    stored (serialized again it lacks its kernels: "Function ... not found" when loaded)."""
+    jax_cache, executables = tmp_path / "jax", tmp_path / "executables"
+
+    def run(mode):
+        command = [sys.executable, "-P", "-c", _WITH_JAX_CACHE, str(jax_cache), str(executables)]
+        done = subprocess.run(command + [mode], capture_output=True, text=True, timeout=300)
+        assert done.returncode == 0, done.stderr
+        return done.stdout.strip()
+
+    expected = run("plain")
+    assert run("cached") == expected
+    assert not list(executables.glob("*.jaxexec"))
+    assert run("cached") == expected
 
 
 def test_cli_with_a_swapped_cache_entry_runs_normally_and_repairs_it(cli_run, tmp_path):
     cache = copy_of_the_runs_cache(tmp_path / "cache")  # entries the run below loads, all of them
-    _swap_entries(cache / "exports")
+    _swap_entries(cache / "executables")
     out = tmp_path / "out"
     env = dict(os.environ, TRIPODJAX_CACHE_DIR=str(cache))
     command = [sys.executable, "-P", "-m", "tripodjax.optimize.cli", "--out", str(out)]
@@ -423,7 +489,7 @@ def test_cli_with_a_swapped_cache_entry_runs_normally_and_repairs_it(cli_run, tm
     )
     assert result.returncode == 0, result.stderr
     assert "Traceback" not in result.stderr
-    assert _entries_hold_their_keys(cache / "exports")
+    assert _entries_hold_their_keys(cache / "executables")
     assert strict_json(out / "report.json")["converged"]
 
 
