@@ -16,7 +16,7 @@ Every figure is measured in the same run against a peer, and reported as a ratio
   from the newton / float64 / n_theta = 360 answer;
 - for each structure of `STRUCTURES` (which variables are free), the first solve and a
   re-solve, and the command's cold and warm run with the conformity free (its warm run
-  loads that structure's export from the command's cache).
+  loads that structure's executables from the command's cache).
 - the time report.html and report.xlsx add to writing report.json and the PNGs.
 - Monte Carlo samples per second of the reliability's requirement chain, against the plain
   sweep's layouts per second (``monte_carlo_rate``).
@@ -84,7 +84,7 @@ def command_latency(repeats=2, spec_text=None):
     """Cold and warm ``optimize-joint`` against the import floor [s] and their ratios.
 
     ``spec_text``: a TOML spec to run instead of the default (e.g. one of `STRUCTURES`: its
-    warm run loads the structure's export from the command's cache).
+    warm run loads the structure's executables from the command's cache).
     """
     floor = _seconds([sys.executable, "-c", COMMAND_FLOOR], repeats=3)
     cli = [sys.executable, "-P", "-m", "tripodjax.optimize.cli"]  # -P: the installed package
