@@ -207,6 +207,30 @@ def _landscape_axes(spec, catalogue):
     return np.linspace(r_min, r_max, 28), np.linspace(0.95 * min(d), 1.05 * max(d), 28)
 
 
+def _reports(spec, design):
+    """The life, forces and halfshaft sections of the report for a design (None where absent)."""
+    from tripodjax.optimize import structural
+    from tripodjax.optimize.problem import forces_report, life_report
+
+    try:
+        life, forces = life_report(spec, design), forces_report(spec, design)
+    except ValueError:  # a design outside the domain (a failed solve): no life, no forces
+        life = forces = None
+    try:
+        halfshaft = structural.halfshaft_report(spec, design)
+    except ValueError:  # no [vehicle] (the report's halfshaft section says why it is absent) or
+        # a design outside the domain (a failed solve)
+        halfshaft = None
+    return life, forces, halfshaft
+
+
+def _warm_reports(spec, design):
+    """`_reports` run for its compiled programs only: whatever it raises, the design's own
+    reports raise again where it applies to them."""
+    with contextlib.suppress(Exception):
+        _reports(spec, design)
+
+
 def _mid_box(spec):
     """The middle of the box of the free variables, in spec units (a design inside the domain)."""
     import numpy as np
@@ -284,8 +308,6 @@ def _compute(args, given, command_line):
         constraint_landscape,
         evaluate,
         evaluate_catalogue,
-        forces_report,
-        life_report,
     )
     from tripodjax.optimize.reliability import report_reliability
     from tripodjax.optimize.sensitivity import sensitivities
@@ -318,10 +340,13 @@ def _compute(args, given, command_line):
     rows = len(scenarios) * spec.structure.starts
     try:
         with executable_cache(os.path.join(_cache_dir(), "executables")), rows_per_call(rows):
+            run_in_context = contextvars.copy_context().run
             warm = None
             if full_reference is not None:
-                run_in_context = contextvars.copy_context().run
                 warm = pool.submit(run_in_context, evaluate, full_reference, _mid_box(spec))
+            # The reports' programs compile there too, at the same design, while the solve
+            # compiles and runs (their executables serve the proposed design: same shapes).
+            reports_ready = pool.submit(run_in_context, _warm_reports, spec, _mid_box(spec))
             results = run(spec, scenarios, progress)
             result, by_weight = results[0], dict(zip(members, results[1:], strict=True))
             pareto = [(w, by_weight.get(w, result)) for w in pareto_weights]
@@ -335,16 +360,8 @@ def _compute(args, given, command_line):
                 warm.result()
                 design = {k: result.design[k] for k in spec.structure.free}
                 full = {"solver": "newton", "n_theta": 360, **evaluate(full_reference, design)}
-            try:
-                life = life_report(spec, result.design)
-                forces = forces_report(spec, result.design)
-            except ValueError:  # a design outside the domain (a failed solve): no life, no forces
-                life = forces = None
-            try:
-                halfshaft = structural.halfshaft_report(spec, result.design)
-            except ValueError:  # no [vehicle] (the report's halfshaft section says why it is
-                # absent) or a design outside the domain (a failed solve)
-                halfshaft = None
+            reports_ready.result()
+            life, forces, halfshaft = _reports(spec, result.design)
     finally:
         pool.shutdown(wait=False, cancel_futures=True)
     figures = {
