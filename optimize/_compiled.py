@@ -9,7 +9,9 @@ compilation cache, keyed on the lowered program, would have it trace and lower e
 function again: 1.5 s of a warm run, measured). Every optimiser program runs for
 milliseconds a call and is compiled for latency (``tripodjax._compile.LATENCY_BOUND``),
 cached or not. An entry holds its own key and is checked against the call's arguments
-when called; any mismatch removes it and compiles again.
+when called; any mismatch removes it and compiles again. The folder holds at most
+``MAX_CACHE_BYTES``: the least recently used entries (by their files' modification times, set
+when an entry is loaded) go first.
 """
 
 import contextlib
@@ -152,7 +154,10 @@ class _ExecutableCache:
                 raise ValueError("the entry is not this key's")
             in_tree, out_tree, executable = pickle.loads(data[len(header) :])
             _linear_algebra_ready()
-            return serialize_executable.deserialize_and_load(executable, in_tree, out_tree)
+            loaded = serialize_executable.deserialize_and_load(executable, in_tree, out_tree)
+            with contextlib.suppress(OSError):
+                os.utime(path)  # in use: the last entry `_prune` removes
+            return loaded
         except Exception:  # corrupt, from another jaxlib, another key's
             self._remove(key)
             return None
@@ -176,9 +181,31 @@ class _ExecutableCache:
                 f.write(_header(key))
                 f.write(data)
             os.replace(tmp, self._path(key))
+            _prune(self.directory, MAX_CACHE_BYTES)
         except OSError:
             pass  # a read-only cache only costs time
         return compiled
+
+
+MAX_CACHE_BYTES = 2**30
+"""The cache's size [bytes] beyond which writing an entry removes the least recently used ones
+(an entry is some 0.1–6 MB; a new version or package source adds entries of new keys)."""
+
+
+def _prune(directory, limit):
+    """Remove the least recently used entries of ``directory`` until they hold ≤ ``limit`` bytes."""
+    entries = []
+    for path in directory.glob("*.jaxexec"):
+        with contextlib.suppress(OSError):  # another process may remove it meanwhile
+            stat = path.stat()
+            entries.append((stat.st_mtime, stat.st_size, path))
+    total = sum(size for _, size, _ in entries)
+    for _, size, path in sorted(entries):
+        if total <= limit:
+            break
+        with contextlib.suppress(OSError):
+            path.unlink()
+        total -= size
 
 
 _HITS = threading.local()  # persistent-cache hits of JAX in this thread, since last reset

@@ -412,6 +412,39 @@ def test_executable_cache_replaces_a_swapped_or_corrupt_entry(tmp_path):
     assert _entries_hold_their_keys(tmp_path)
 
 
+def test_executable_cache_removes_the_least_recently_used_entries(tmp_path, monkeypatch):
+    import functools
+
+    import jax
+    import jax.numpy as jnp
+
+    from tripodjax.optimize import _compiled
+
+    @functools.partial(jax.jit, static_argnums=0)
+    def scaled(factor, x):
+        return factor * x
+
+    def entry(factor):
+        with _compiled.executable_cache(tmp_path):
+            assert float(_compiled.call(scaled, factor, jnp.ones(2))[0]) == factor
+        return max(tmp_path.glob("*.jaxexec"), key=lambda p: p.stat().st_mtime_ns)
+
+    paths = {}
+    for i, factor in enumerate((1.0, 2.0, 3.0)):
+        paths[factor] = entry(factor)
+        os.utime(paths[factor], (100.0 + i, 100.0 + i))  # used in this order, 1 s apart
+    sizes = [p.stat().st_size for p in paths.values()]
+    monkeypatch.setattr(_compiled, "MAX_CACHE_BYTES", sum(sizes) + min(sizes) // 2)  # 3 fit
+    entry(1.0)  # loaded: now the most recently used
+    assert paths[1.0].stat().st_mtime > 200.0
+    newest = entry(4.0)  # written: the cache is over its size, the oldest entry goes
+    assert {p.name for p in tmp_path.glob("*.jaxexec")} == {
+        paths[1.0].name,
+        paths[3.0].name,
+        newest.name,
+    }
+
+
 _LOADS_AN_LU = """
 import functools, sys
 import jax, jax.numpy as jnp, jax.monitoring
