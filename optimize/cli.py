@@ -224,9 +224,13 @@ def _reports(spec, design):
     return life, forces, halfshaft
 
 
-def _warm_reports(spec, design):
-    """`_reports` run for its compiled programs only: whatever it raises, the design's own
-    reports raise again where it applies to them."""
+def _compile_ahead(spec, design):
+    """The sensitivities' reverse pass and `_reports` run at ``design`` for their compiled
+    programs only: whatever they raise, the optimum's raise again where it applies to them."""
+    from tripodjax.optimize.sensitivity import compile_reverse_pass
+
+    with contextlib.suppress(Exception):
+        compile_reverse_pass(spec)
     with contextlib.suppress(Exception):
         _reports(spec, design)
 
@@ -344,14 +348,16 @@ def _compute(args, given, command_line):
             warm = None
             if full_reference is not None:
                 warm = pool.submit(run_in_context, evaluate, full_reference, _mid_box(spec))
-            # The reports' programs compile there too, at the same design, while the solve
-            # compiles and runs (their executables serve the proposed design: same shapes).
-            reports_ready = pool.submit(run_in_context, _warm_reports, spec, _mid_box(spec))
+            # The sensitivities' reverse pass and the reports' programs compile there too, at
+            # the same design, while the solve compiles and runs (their executables serve the
+            # proposed design: the same shapes).
+            ahead = pool.submit(run_in_context, _compile_ahead, spec, _mid_box(spec))
             results = run(spec, scenarios, progress)
             result, by_weight = results[0], dict(zip(members, results[1:], strict=True))
             pareto = [(w, by_weight.get(w, result)) for w in pareto_weights]
             catalogue, choice = evaluate_catalogue(spec)
             landscape = constraint_landscape(spec, *_landscape_axes(spec, catalogue))
+            ahead.result()
             if result.converged:  # derivatives of an optimum, not of an unfinished point
                 result.sensitivities = sensitivities(spec, result)
             reliability = report_reliability(given, result.design, args.reliability)
@@ -360,7 +366,6 @@ def _compute(args, given, command_line):
                 warm.result()
                 design = {k: result.design[k] for k in spec.structure.free}
                 full = {"solver": "newton", "n_theta": 360, **evaluate(full_reference, design)}
-            reports_ready.result()
             life, forces, halfshaft = _reports(spec, result.design)
     finally:
         pool.shutdown(wait=False, cancel_futures=True)

@@ -106,6 +106,46 @@ def _difference_rows(values, x, entries):
     return batch, np.stack([r[1] for r in rows]), hx, np.asarray(hp)
 
 
+def _reversed_keys(inputs):
+    """The inputs whose columns come from the reverse pass: every list, when they hold
+    ``REVERSE_FROM`` entries or more in all."""
+    entries = sum(v.size for v in inputs.values() if v.ndim > 0)
+    return [k for k, v in inputs.items() if v.ndim > 0 and entries >= REVERSE_FROM]
+
+
+def _reverse_pass(structure, values, x, lam, inputs, reversed_keys):
+    """``_pullback`` of the rows `_right_hand_side` needs, w.r.t. the ``reversed_keys`` lists."""
+    n, m = x.size, lam.size
+    # Cotangents of (f, c, ∇ₓf, J): row r < n pulls back ∂(∇ₓL)_r = ∂(∇ₓf − Jᵀλ)_r,
+    # the next m rows ∂c_i, the last ∂L = ∂(f − λ·c).
+    eye_n = np.eye(n)
+    cotangents = (
+        np.concatenate([np.zeros(n + m), [1.0]]),
+        np.concatenate([np.zeros((n, m)), np.eye(m), -lam[None]]),
+        np.concatenate([eye_n, np.zeros((m + 1, n))]),
+        np.concatenate([-lam[None, :, None] * eye_n[:, None, :], np.zeros((m + 1, m, n))]),
+    )
+    lists = {}
+    for section, key in reversed_keys:
+        lists.setdefault(section, {})[key] = inputs[section, key]
+    with jax.enable_x64(True):  # float64, scoped to this call
+        return call(_pullback, structure, values, x, lists, cotangents)
+
+
+def compile_reverse_pass(spec: Spec) -> None:
+    """Run the reverse pass [`sensitivities`][tripodjax.optimize.sensitivities] of ``spec``
+    needs (if any) once, at the middle of the box: its compiled program (its shapes are any
+    design's) is then ready for the optimum's (``optimize-joint`` compiles it beside the solve).
+    """
+    structure, values = spec.structure, spec.values
+    inputs = _inputs(structure, values)
+    reversed_keys = _reversed_keys(inputs)
+    if reversed_keys:
+        lower, upper = bounds(structure, values, np)
+        lam = np.zeros(len(constraint_names(structure)))
+        _reverse_pass(structure, values, 0.5 * (lower + upper), lam, inputs, reversed_keys)
+
+
 def _right_hand_side(structure, values, x, lam, inputs):
     """(H, J, G = (∇ₓL, c) at x, the columns ∂G/∂p and ∂L/∂p of every input entry).
 
@@ -114,8 +154,7 @@ def _right_hand_side(structure, values, x, lam, inputs):
     one reverse pass (see the module docstring).
     """
     n, m = x.size, lam.size
-    entries = sum(v.size for v in inputs.values() if v.ndim > 0)
-    reversed_keys = [k for k, v in inputs.items() if v.ndim > 0 and entries >= REVERSE_FROM]
+    reversed_keys = _reversed_keys(inputs)
     differenced = [
         (k, None if v.ndim == 0 else i)
         for k, v in inputs.items()
@@ -137,20 +176,7 @@ def _right_hand_side(structure, values, x, lam, inputs):
             columns[key] = (dG[:, start : start + value.size], dL[start : start + value.size])
             start += value.size
     if reversed_keys:
-        # Cotangents of (f, c, ∇ₓf, J): row r < n pulls back ∂(∇ₓL)_r = ∂(∇ₓf − Jᵀλ)_r,
-        # the next m rows ∂c_i, the last ∂L = ∂(f − λ·c).
-        eye_n = np.eye(n)
-        cotangents = (
-            np.concatenate([np.zeros(n + m), [1.0]]),
-            np.concatenate([np.zeros((n, m)), np.eye(m), -lam[None]]),
-            np.concatenate([eye_n, np.zeros((m + 1, n))]),
-            np.concatenate([-lam[None, :, None] * eye_n[:, None, :], np.zeros((m + 1, m, n))]),
-        )
-        lists = {}
-        for section, key in reversed_keys:
-            lists.setdefault(section, {})[key] = inputs[section, key]
-        with jax.enable_x64(True):  # float64, scoped to this call
-            pulled = call(_pullback, structure, values, x, lists, cotangents)
+        pulled = _reverse_pass(structure, values, x, lam, inputs, reversed_keys)
         for section, key in reversed_keys:
             rows = np.asarray(pulled[section][key])  # (n + m + 1, entries)
             columns[section, key] = (rows[: n + m], rows[n + m])

@@ -234,3 +234,30 @@ def test_a_long_spectrum_costs_one_reverse_pass(monkeypatch):
     torque = [k for k in (*sens["derivatives"], *sens["withheld"]) if k.startswith("life.torque[")]
     assert len(torque) == cases
     assert all(np.isfinite(v) for row in sens["derivatives"].values() for v in row.values())
+
+
+def test_the_reverse_pass_compiled_ahead_serves_the_optimum(default_result, tmp_path, monkeypatch):
+    """`compile_reverse_pass` at the middle of the box compiles the program the optimum's
+    sensitivities call (optimize-joint runs it beside the solve): no second compile, the same
+    derivatives."""
+    from tripodjax.optimize import _compiled
+
+    inputs = sensitivity._inputs(SPEC.structure, SPEC.values)
+    assert sensitivity._reversed_keys(inputs)  # the default spec's lists take the reverse pass
+    compiled = []
+    real = _compiled._ExecutableCache._compile
+    monkeypatch.setattr(
+        _compiled._ExecutableCache,
+        "_compile",
+        lambda self, key, jitted, *a: compiled.append(jitted) or real(self, key, jitted, *a),
+    )
+    with _compiled.executable_cache(tmp_path):
+        sensitivity.compile_reverse_pass(SPEC)
+        assert compiled == [sensitivity._pullback]
+        again = sensitivity.sensitivities(SPEC, default_result)
+    assert compiled.count(sensitivity._pullback) == 1
+    expected = default_result.sensitivities["derivatives"]
+    assert set(again["derivatives"]) == set(expected)
+    for label, row in expected.items():
+        for output, value in row.items():
+            assert again["derivatives"][label][output] == pytest.approx(value, rel=1e-12), label
