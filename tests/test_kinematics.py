@@ -86,6 +86,34 @@ def test_gradients_match_central_differences(name):
         assert float(getattr(grads, field)) == pytest.approx(fd, rel=1e-3, abs=1e-12), field
 
 
+DIFFERENTIATED = tuple(name for name in kinematics.METRICS if name not in ("converged", "result"))
+
+
+@pytest.mark.parametrize("dtype, rtol", [("float64", 1e-9), ("float32", 1e-4)])
+def test_jacobian_at_the_extremes_equals_the_whole_revolutions(dtype, rtol):
+    """Each metric's Jacobian comes from the revolution linearised at its extremes' angles
+    alone (Danskin): it equals JAX's linearisation of the whole revolution (every angle),
+    over the domain, its corner and edges included, in both dtypes."""
+    with jax.enable_x64(dtype == "float64"):
+        fields = [jnp.asarray(a, dtype) for a in domain_layouts(64, seed=5)]
+        keep = np.flatnonzero(fields[2] > 1e-3)[:24]  # γ0 = 0: γ − γ0 ties at every angle
+        layouts = Layout(*(f[keep] for f in fields))
+
+        def ours(layout):
+            metrics = kinematic_metrics(layout)
+            return {name: getattr(metrics, name) for name in DIFFERENTIATED}
+
+        def whole(layout):
+            sol, rates = revolution(layout, 360, "newton", with_rates=True)
+            return metrics_from(layout, sol, rates, DIFFERENTIATED)
+
+        ours, whole = (jax.jit(jax.vmap(jax.jacfwd(f)))(layouts) for f in (ours, whole))
+        for name in DIFFERENTIATED:
+            for field in ("R", "l", "gamma0"):
+                a, b = (np.asarray(getattr(j[name], field)) for j in (ours, whole))
+                np.testing.assert_allclose(a, b, rtol=rtol, atol=0, err_msg=f"{name} {field}")
+
+
 def test_jacfwd_over_all_fields():
     jac = jax.jacfwd(lambda lay: kinematic_metrics(lay).irregularity)(seed_case("N"))
     assert all(np.isfinite(float(v)) for v in jax.tree_util.tree_leaves(jac))

@@ -115,10 +115,6 @@ def period_grid(n_theta: int, dtype: DTypeLike) -> jax.Array:
     return jnp.asarray(np.arange(n) * (2.0 * np.pi / 3.0 / n), dtype)
 
 
-def _ptp(x, axis=None):
-    return jnp.max(x, axis=axis) - jnp.min(x, axis=axis)
-
-
 # Half-width [rad of 3θ] of the window about 3θ = π/2 that holds the peak of |Δ| over the half
 # period whenever Δ's first harmonic dominates as it does over the layout domain (the largest
 # share of the others there, Σ m|b_m|/|b_1| ≈ 0.036 at R/l = 0.2, γ0 = 45°, is a third of sin of it).
@@ -243,12 +239,43 @@ class _Revolution:
     (``lax.cond``; under ``vmap`` both are evaluated).
     """
 
-    def __init__(self, layout, sol, rates, extremes="auto"):
+    def __init__(self, layout, sol, rates, extremes="auto", *, record=False, picks=None):
         self.sol, self.rates, self.extremes = sol, rates, extremes
+        # The extremes over the grid's angles (``extreme``): each the array's largest or
+        # smallest value, with ``record`` its position appended to ``positions``; with ``picks``
+        # (the ``positions`` of a revolution on the whole grid), the solution is at those
+        # angles only, the j-th extreme the value at pick j.
+        self.picks = picks
+        self.positions = [] if record or picks is not None else None
         dtype = sol.theta.dtype
         self.R, self.l, self.gamma0 = (
             jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0)
         )
+
+    def extreme(self, x, kind):
+        """max (``kind`` "max") or min of x over its angles (axis 0) and rollers (axis 1, if any).
+
+        The position (angle, roller) of the first extreme value is kept in ``positions``; with
+        ``picks`` the value at the next pick (see ``__init__``). A derivative of an extreme
+        over the grid is that of its value at that position (Danskin; the first one where
+        several angles tie), so ``_metrics_and_jacobian`` forms it from those angles alone.
+        """
+        if self.picks is not None:
+            j = len(self.positions)
+            roller = self.picks[j][1]
+            self.positions.append(self.picks[j])
+            return x[j] if roller is None else x[j, roller]
+        if self.positions is not None:
+            position = jnp.argmax(x) if kind == "max" else jnp.argmin(x)
+            if x.ndim == 1:
+                self.positions.append((position, None))
+            else:
+                self.positions.append(jnp.unravel_index(position, x.shape))
+        return jnp.max(x) if kind == "max" else jnp.min(x)
+
+    def ptp(self, x):
+        """Peak to peak of x over its angles (and rollers): ``extreme`` max − min."""
+        return self.extreme(x, "max") - self.extreme(x, "min")
 
     @functools.cached_property
     def amplitude(self):
@@ -304,13 +331,13 @@ class _Revolution:
         if self.sol.series is not None:  # Δ odd: ptp = 2 max |Δ| over the half period
             return self.amplitude * 2.0 * self.series_extremes[0]
         limit = -jnp.sin(3.0 * self.sol.theta)
-        return self.amplitude * _ptp(_shape_of(self.sol.delta, self.amplitude, limit))
+        return self.amplitude * self.ptp(_shape_of(self.sol.delta, self.amplitude, limit))
 
     def irregularity(self):
         if self.sol.series is not None:
             return self.amplitude * (self.series_extremes[1] - self.series_extremes[2])
         limit = -3.0 * jnp.cos(3.0 * self.sol.theta)
-        return self.amplitude * _ptp(_shape_of(self.rates.delta, self.amplitude, limit))
+        return self.amplitude * self.ptp(_shape_of(self.rates.delta, self.amplitude, limit))
 
     def worst_result(self):
         """The worst result code over the revolution (from the series' own when present)."""
@@ -321,12 +348,12 @@ class _Revolution:
     def delta_gamma_max(self):
         if self.sol.series is not None:
             return self.series_extremes[3]
-        return jnp.max(self.sol.delta_gamma)
+        return self.extreme(self.sol.delta_gamma, "max")
 
     def gamma_pp(self):
         if self.sol.series is not None:
             return self.series_extremes[3] - self.series_extremes[4]
-        return _ptp(self.sol.delta_gamma)
+        return self.ptp(self.sol.delta_gamma)
 
     def roller_axial_stroke(self):
         """R tan γ0 · ptp(Z_i / (R tan γ0)), the shape regular at γ0 = 0 (→ −cos ψ_i)."""
@@ -354,7 +381,7 @@ class _Revolution:
             + 2.0 * (jnp.sin(0.5 * gamma) ** 2 * jnp.cos(3.0 * s.psi))[..., None]
         )
         shape = plunge[..., None] - 0.5 * tan_ratio[..., None] * bracket
-        return R * jnp.tan(g0) * _ptp(shape)
+        return R * jnp.tan(g0) * self.ptp(shape)
 
 
 _METRICS = {
@@ -364,16 +391,18 @@ _METRICS = {
     "gamma_max": lambda r: r.gamma0 + r.delta_gamma_max(),
     # e(γ) grows with γ on 0 ≤ γ < π/2: its largest value is e at the largest γ.
     "ecc_max": lambda r: joint.eccentricity(r.R, r.gamma0 + r.delta_gamma_max()),
-    "roller_stroke": lambda r: _ptp(r.roller_radial_excess),
-    "roller_radial_max": lambda r: r.R + jnp.max(r.roller_radial_excess),
+    "roller_stroke": lambda r: r.ptp(r.roller_radial_excess),
+    "roller_radial_max": lambda r: r.R + r.extreme(r.roller_radial_excess, "max"),
     "roller_axial_stroke": _Revolution.roller_axial_stroke,
-    "spider_orbit_x": lambda r: _ptp(r.spider[0]),
-    "spider_orbit_y": lambda r: _ptp(r.spider[1]),
-    "spider_orbit_z": lambda r: _ptp(r.spider[2]),
+    "spider_orbit_x": lambda r: r.ptp(r.spider[0]),
+    "spider_orbit_y": lambda r: r.ptp(r.spider[1]),
+    "spider_orbit_z": lambda r: r.ptp(r.spider[2]),
     "converged": lambda r: r.worst_result() == RESULTS.successful,
-    "max_residual": lambda r: jnp.max(jnp.abs(r.sol.residual)),
+    "max_residual": lambda r: r.extreme(jnp.abs(r.sol.residual), "max"),
     "error_estimate": lambda r: (
-        r.sol.series.error_estimate if r.sol.series is not None else jnp.max(r.sol.error_estimate)
+        r.sol.series.error_estimate
+        if r.sol.series is not None
+        else r.extreme(r.sol.error_estimate, "max")
     ),
     "result": lambda r: r.worst_result(),
 }
@@ -467,7 +496,10 @@ def kinematic_metrics(
         are static). Every float field is differentiable (``jax.grad``,
         ``jax.jacfwd``) w.r.t. every Layout field, and at γ0 = 0 ``jax.grad``
         gives the one-sided derivative (irregularity 1.5 R/l, delta_pp
-        R/(2l), roller_axial_stroke 2R per radian of γ0).
+        R/(2l), roller_axial_stroke 2R per radian of γ0). A metric is an
+        extreme over the grid (or a difference of two): its derivative is that
+        at the extreme's angle, the first of them where several tie;
+        ``max_residual`` and ``error_estimate`` are not differentiated (0).
     """
     check_layout(layout)
     solver = solvers.resolve_legacy(solver, fidelity)
@@ -495,32 +527,91 @@ def _differentiable(layout):
 def _metrics_and_jacobian(layout, *, n_theta, solver):
     """Every metric of one layout and its Jacobian w.r.t. the layout's floating-point fields.
 
-    One program, one linearisation (forward mode, one direction per field): a plain call
-    and a derivative (``jax.grad``, ``jax.jacfwd``) of the same layout run this same
-    compiled program, where a forward program and a JVP program were compiled before (the
-    README's first example paid both; see docs/speed-accuracy.md). Under ``jax.jit`` of a
-    plain call, the unused Jacobian is removed by the compiler.
+    One program: a plain call and a derivative (``jax.grad``, ``jax.jacfwd``) of the same
+    layout run this same compiled program, where a forward program and a JVP program were
+    compiled before (the README's first example paid both; see docs/speed-accuracy.md).
+    Under ``jax.jit`` of a plain call, the unused Jacobian is removed by the compiler.
+
+    Each metric is an extreme (or a difference of two) over the grid's angles and rollers,
+    and its derivative that of its value at the extreme's position (Danskin's theorem;
+    ``_Revolution.extreme``): the Jacobian is a linearisation (forward mode, one direction
+    per field) of the revolution at those few angles, not at the grid's n_theta/3. An
+    interpolating level's series extremes linearise the revolution at every angle.
     """
     leaves, tree = jax.tree_util.tree_flatten(layout)
     moving = _differentiable(layout)
 
-    def of(*fields):
+    def with_fields(fields):
         args = list(leaves)
         for i, value in zip(moving, fields, strict=True):
             args[i] = value
-        return _every_metric(tree.unflatten(args), n_theta, solver)
+        return tree.unflatten(args)
+
+    def metrics_of(r):
+        return KinematicMetrics(**{name: _METRICS[name](r) for name in METRICS})
 
     fields = [leaves[i] for i in moving]
+    sol, rates = revolution(layout, n_theta, solver, with_rates=True)
     if not fields:
-        return of(), None
+        return metrics_of(_Revolution(layout, sol, rates)), None
     dtype = jnp.result_type(*fields)
     basis = jnp.eye(len(fields), dtype=dtype)
-    return jax.vmap(
-        lambda e: jax.jvp(
-            of, tuple(fields), tuple(e[k].astype(f.dtype) for k, f in enumerate(fields))
-        ),
-        out_axes=(None, 0),
-    )(basis)
+
+    def directions(e):
+        return tuple(e[k].astype(f.dtype) for k, f in enumerate(fields))
+
+    if sol.series is not None:
+
+        def of(*fields):
+            return _every_metric(with_fields(fields), n_theta, solver)
+
+        return jax.vmap(lambda e: jax.jvp(of, tuple(fields), directions(e)), out_axes=(None, 0))(
+            basis
+        )
+    values, columns, recorded = {}, {}, []
+    for group in _JACOBIAN_GROUPS:
+        grid = _Revolution(layout, sol, rates, record=True)
+        values.update({name: _METRICS[name](grid) for name in group})
+        recorded.append(grid.positions)
+    # Every group's angles padded to one count (with its first): one trace of the solve.
+    count = max(len(picks) for picks in recorded)
+    for group, picks in zip(_JACOBIAN_GROUPS, recorded, strict=True):
+        angles = [angle for angle, _ in picks]
+        theta = sol.theta[jnp.stack(angles + angles[:1] * (count - len(angles)))]
+
+        def at_picks(*fields, group=group, picks=picks, theta=theta):
+            picked = with_fields(fields)
+            solve = functools.partial(_solve_period, picked, solver=solver)
+            solved = jax.jvp(solve, (theta,), (jnp.ones_like(theta),))
+            r = _Revolution(picked, *solved, picks=picks)
+            return {name: _METRICS[name](r) for name in group}
+
+        columns.update(
+            jax.vmap(lambda e, f=at_picks: jax.jvp(f, tuple(fields), directions(e))[1])(basis)
+        )
+    codes = _Revolution(layout, sol, rates)
+    for name in METRICS:  # the result codes and diagnostics: not differentiated (halfshaft)
+        if name not in values:
+            values[name] = _METRICS[name](codes)
+            columns[name] = jnp.zeros(len(fields), dtype)
+    return KinematicMetrics(**values), KinematicMetrics(**columns)
+
+
+# The metrics whose Jacobian comes from one linearisation of the revolution at their extremes'
+# angles (``_metrics_and_jacobian``), grouped by the cost of the series that find those angles:
+# a derivative of one metric (under ``jax.jit``, the others' removed) costs its group's series.
+# The others are result codes and diagnostics (max_residual, error_estimate), not differentiated.
+_JACOBIAN_GROUPS = (
+    ("delta_pp", "irregularity", "gamma_pp", "gamma_max", "ecc_max"),
+    (
+        "roller_stroke",
+        "roller_radial_max",
+        "roller_axial_stroke",
+        "spider_orbit_x",
+        "spider_orbit_y",
+        "spider_orbit_z",
+    ),
+)
 
 
 @functools.partial(jax.custom_jvp, nondiff_argnums=(1, 2))
