@@ -292,6 +292,24 @@ def _main(argv):
 
 
 def _compute(args, given, command_line):
+    """Everything the report holds (`_contents`), JAX's persistent cache off meanwhile.
+
+    The command keeps its programs' executables itself (`executable_cache`); JAX's persistent
+    cache (on where JAX_COMPILATION_CACHE_DIR is set) would trace and lower each program again,
+    and an executable it returns cannot be kept (see `_compiled`). The setting is restored
+    afterwards: a notebook that calls `main` keeps its own.
+    """
+    import jax
+
+    previous = jax.config.jax_enable_compilation_cache
+    jax.config.update("jax_enable_compilation_cache", False)
+    try:
+        return _contents(args, given, command_line)
+    finally:
+        jax.config.update("jax_enable_compilation_cache", previous)
+
+
+def _contents(args, given, command_line):
     """Everything the report holds: solve, catalogue, landscape, sensitivities, figures.
 
     ``given`` is the spec as loaded (its reliability table and the report's spec); the
@@ -300,12 +318,6 @@ def _compute(args, given, command_line):
     import contextvars
     from concurrent.futures import ThreadPoolExecutor
 
-    import jax
-
-    # The command keeps its programs' executables itself (`executable_cache`); JAX's
-    # persistent cache (on where JAX_COMPILATION_CACHE_DIR is set) would trace and lower each
-    # program again, and an executable it returns cannot be kept (see `_compiled`).
-    jax.config.update("jax_enable_compilation_cache", False)
     from tripodjax.optimize import document, report, structural
     from tripodjax.optimize._compiled import executable_cache, rows_per_call
     from tripodjax.optimize.problem import (

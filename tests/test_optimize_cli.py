@@ -550,3 +550,30 @@ def test_an_infeasible_verdict_says_whether_another_start_was_feasible():
     message, status = _verdict(result(False, True, True))
     assert status == EXIT_NOT_CONVERGED and "no start reached" not in message
     assert "2 other start(s) feasible" in message and "life (margin -3e-07)" in message
+
+
+@pytest.mark.parametrize("failing", [False, True])
+def test_the_command_restores_jaxs_persistent_cache_setting(monkeypatch, failing):
+    """The command turns JAX's persistent cache off while it computes (it keeps executables
+    itself) and gives the caller's setting back afterwards, also when the computation fails:
+    a notebook that calls `cli.main` keeps its own cache."""
+    from tripodjax.optimize import cli
+
+    seen = []
+
+    def contents(args, given, command_line):
+        seen.append(jax.config.jax_enable_compilation_cache)
+        if failing:
+            raise RuntimeError("failed")
+        return "report"
+
+    monkeypatch.setattr(cli, "_contents", contents)
+    before = jax.config.jax_enable_compilation_cache
+    try:
+        jax.config.update("jax_enable_compilation_cache", True)
+        with pytest.raises(RuntimeError) if failing else contextlib.nullcontext():
+            assert cli._compute(None, None, []) == "report"
+        assert seen == [False]
+        assert jax.config.jax_enable_compilation_cache is True
+    finally:
+        jax.config.update("jax_enable_compilation_cache", before)
