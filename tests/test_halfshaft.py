@@ -108,6 +108,17 @@ def test_gamma0_zero_is_homokinetic_with_finite_derivatives():
     assert float(dgamma) == pytest.approx(1.0, abs=1e-12)
 
 
+def test_v_is_the_scaled_gamma_ripple_and_vanishes_like_gamma0():
+    """v = (γ − γ0)/γ0, solved beside Δ: γ − γ0 = O(γ0²), so v/γ0 has a finite limit as
+    γ0 → 0 (equal at 1e-6 and 1e-3 to the first order of γ0) and v = 0 at γ0 = 0."""
+    sol = solve_halfshaft(seed_case("N"), THETA)
+    np.testing.assert_allclose(sol.v * seed_case("N").gamma0, sol.delta_gamma, rtol=1e-15)
+    slopes = [solve_halfshaft(Layout(25.0, 500.0, g), THETA).v / g for g in (1e-6, 1e-3)]
+    assert float(jnp.max(jnp.abs(slopes[0]))) > 1e-3
+    np.testing.assert_allclose(slopes[1], slopes[0], rtol=1e-3, atol=1e-9)
+    np.testing.assert_array_equal(solve_halfshaft(Layout(25.0, 500.0, 0.0), THETA).v, 0.0)
+
+
 def test_tiny_gamma0_converges_in_float32_and_float64():
     for dtype in (jnp.float32, jnp.float64):
         layout = Layout(

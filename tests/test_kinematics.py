@@ -10,6 +10,7 @@ import pytest
 import reference
 
 from tripodjax import TABLE_2_1, Layout, kinematic_metrics, kinematics, seed_case, sweep
+from tripodjax._compile import latency_bound_jit
 from tripodjax.bench import domain_layouts
 from tripodjax.kinematics import FROM_SERIES, metrics_and_window, metrics_from, revolution
 from tripodjax.results import RESULTS
@@ -112,6 +113,29 @@ def test_jacobian_at_the_extremes_equals_the_whole_revolutions(dtype, rtol):
             for field in ("R", "l", "gamma0"):
                 a, b = (np.asarray(getattr(j[name], field)) for j in (ours, whole))
                 np.testing.assert_allclose(a, b, rtol=rtol, atol=0, err_msg=f"{name} {field}")
+
+
+def test_second_derivatives_match_differences_of_the_gradient():
+    """The Jacobian's rule is itself differentiable (the implicit derivative at the known
+    solution): a Hessian-vector product of the irregularity w.r.t. (R, l, γ0) equals central
+    differences of its gradient (the same program's primal output)."""
+    base = {"R": 28.0, "l": 420.0, "gamma0": 0.31}
+    direction = Layout(0.3, 2.0, 0.01)
+
+    def gradient(lay):
+        return jax.grad(lambda lay: kinematic_metrics(lay).irregularity)(lay)
+
+    # Compiled for latency (no LLVM optimisation): the test waits for the compile alone.
+    product_of = latency_bound_jit(lambda lay: jax.jvp(gradient, (lay,), (direction,)))
+    _, product = product_of(Layout(**base))
+    step = 1e-5
+    plus, minus = (
+        product_of(Layout(*(base[f] + sign * step * getattr(direction, f) for f in base)))[0]
+        for sign in (1, -1)
+    )
+    for field in base:
+        fd = (float(getattr(plus, field)) - float(getattr(minus, field))) / (2 * step)
+        assert float(getattr(product, field)) == pytest.approx(fd, rel=1e-4), field
 
 
 def test_jacfwd_over_all_fields():

@@ -426,20 +426,29 @@ def _newton(R, l, gamma0, theta, rtol, max_steps):
 
 
 def _implicit_solver(rtol, max_steps):
-    """Newton solve whose derivatives come from the implicit function theorem.
+    """Newton solve whose derivatives come from the implicit function theorem (``_implicit``)."""
+    return _implicit(lambda R, l, gamma0, theta: _newton(R, l, gamma0, theta, rtol, max_steps))
+
+
+def _implicit(primal):
+    """``primal(R, l, gamma0, theta, *known)`` → (Δ, v, steps, result) at the solution of the pair,
+    with derivatives from the implicit function theorem.
 
     The JVP rule solves J·dx = −(∂g/∂(R, l, γ0, θ))·d(R, l, γ0, θ) with the
     closed-form Jacobian J at the solution; the iterations are never
     differentiated. The rule is itself differentiable, so derivatives of any
-    order (and reverse mode, by transposition) follow.
+    order (and reverse mode, by transposition) follow. ``known`` (``_at_solution``'s:
+    the solution itself) has no derivative of its own: it is the solution at
+    (R, l, γ0, θ), whose derivatives the rule gives.
     """
 
     @jax.custom_jvp
-    def solve(R, l, gamma0, theta):
-        return _newton(R, l, gamma0, theta, rtol, max_steps)
+    def solve(R, l, gamma0, theta, *known):
+        return primal(R, l, gamma0, theta, *known)
 
     def solve_jvp(primals, tangents):
         out = solve(*primals)
+        primals, tangents = primals[:4], tangents[:4]
         delta, v = out[:2]
         # Only the layout's fields being differentiated enter the JVP (the others carry
         # symbolic zeros); θ's part is the closed-form ∂g/∂θ, so that the θ-rates (every
@@ -475,6 +484,27 @@ def _implicit_solver(rtol, max_steps):
 
     solve.defjvp(solve_jvp, symbolic_zeros=True)
     return solve
+
+
+_at_solution = _implicit(lambda R, l, gamma0, theta, *known: known)
+
+
+@jax.jit
+def _known_solution(layout, theta, sol):
+    """Newton's solution ``sol`` at angles ``theta`` of ``layout``, differentiable without solving again.
+
+    ``sol`` is ``solve_halfshaft``'s answer (Newton's) at these
+    angles (e.g. picked from a revolution's); its derivatives w.r.t. the layout and θ come
+    from the implicit function theorem at it, as those of the Newton solve itself (the
+    values are ``sol``'s, not computed again). For a derivative at a few angles of a solved
+    grid (``kinematics._metrics_and_jacobian``).
+    """
+    R, l, gamma0, theta = _working_arrays(layout, theta)
+    delta, v, steps, result = _at_solution(
+        R, l, gamma0, theta, sol.delta, sol.v, sol.iterations, sol.result
+    )
+    diagnostics = (sol.residual, sol.error_estimate)  # not differentiated: the grid's
+    return _finish(R, l, gamma0, theta, delta, v, result, steps, diagnostics)
 
 
 def _analytic(R, l, gamma0, theta, corrections):
@@ -518,6 +548,8 @@ class HalfshaftSolution:
         gamma: instantaneous articulation angle γ [rad].
         delta: input–output difference Δ = θ − ψ [rad], solved for directly.
         delta_gamma: γ − γ0 [rad], solved for directly (as γ0 · v).
+        v: (γ − γ0)/γ0 [–], the unknown solved for beside Δ (0 at γ0 = 0, where
+            γ − γ0 vanishes like γ0²).
         residual: scaled residual pair (g1, g2) at the solution,
             dimensionless (the pair 2.9.1–2.9.2 divided by 2 l sin(γ0/2)),
             shape (..., 2). Diagnostic only: not differentiated.
@@ -538,6 +570,7 @@ class HalfshaftSolution:
     gamma: jax.Array
     delta: jax.Array
     delta_gamma: jax.Array
+    v: jax.Array
     residual: jax.Array
     error_estimate: jax.Array
     result: jax.Array
@@ -866,6 +899,7 @@ def _solution(theta, gamma0, delta, v, residual, estimate, result, iterations, s
         gamma=gamma0 + delta_gamma,
         delta=delta,
         delta_gamma=delta_gamma,
+        v=jnp.broadcast_to(v, delta.shape),
         residual=jnp.broadcast_to(residual, delta.shape + (2,)),
         error_estimate=jnp.broadcast_to(estimate, delta.shape),
         result=jnp.broadcast_to(result, delta.shape),

@@ -30,6 +30,7 @@ from tripodjax._compile import latency_bound_at_top_level
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.halfshaft import (
     HalfshaftSolution,
+    _known_solution,
     _reduce_last,
     _series_on,
     _sinc,
@@ -577,11 +578,18 @@ def _metrics_and_jacobian(layout, *, n_theta, solver):
     count = max(len(picks) for picks in recorded)
     for group, picks in zip(_JACOBIAN_GROUPS, recorded, strict=True):
         angles = [angle for angle, _ in picks]
-        theta = sol.theta[jnp.stack(angles + angles[:1] * (count - len(angles)))]
+        index = jnp.stack(angles + angles[:1] * (count - len(angles)))
+        theta = sol.theta[index]
+        # Newton's solution at those angles, differentiated there (implicit function theorem)
+        # without solving again; another level's answer is its own function of the layout.
+        known = jax.tree_util.tree_map(lambda a, index=index: a[index], sol)
 
-        def at_picks(*fields, group=group, picks=picks, theta=theta):
+        def at_picks(*fields, group=group, picks=picks, theta=theta, known=known):
             picked = with_fields(fields)
-            solve = functools.partial(_solve_period, picked, solver=solver)
+            if isinstance(solver, solvers.Newton):
+                solve = functools.partial(_known_solution, picked, sol=known)
+            else:
+                solve = functools.partial(_solve_period, picked, solver=solver)
             solved = jax.jvp(solve, (theta,), (jnp.ones_like(theta),))
             r = _Revolution(picked, *solved, picks=picks)
             return {name: _METRICS[name](r) for name in group}
