@@ -90,22 +90,30 @@ def test_gradients_match_central_differences(name):
 DIFFERENTIATED = tuple(name for name in kinematics.METRICS if name not in ("converged", "result"))
 
 
-@pytest.mark.parametrize("dtype, rtol", [("float64", 1e-9), ("float32", 1e-4)])
-def test_jacobian_at_the_extremes_equals_the_whole_revolutions(dtype, rtol):
+@pytest.mark.parametrize(
+    "dtype, rtol, solver",
+    [
+        ("float64", 1e-9, "newton"),
+        ("float32", 1e-4, "newton"),
+        ("float64", 1e-9, Analytic(nodes=None)),  # solved again at the extremes' angles
+    ],
+)
+def test_jacobian_at_the_extremes_equals_the_whole_revolutions(dtype, rtol, solver):
     """Each metric's Jacobian comes from the revolution linearised at its extremes' angles
-    alone (Danskin): it equals JAX's linearisation of the whole revolution (every angle),
-    over the domain, its corner and edges included, in both dtypes."""
+    alone (Danskin; Newton's from the implicit derivative at the grid's answer): it equals
+    JAX's linearisation of the whole revolution (every angle), over the domain, its corner
+    and edges included, in both dtypes."""
     with jax.enable_x64(dtype == "float64"):
         fields = [jnp.asarray(a, dtype) for a in domain_layouts(64, seed=5)]
         keep = np.flatnonzero(fields[2] > 1e-3)[:24]  # γ0 = 0: γ − γ0 ties at every angle
         layouts = Layout(*(f[keep] for f in fields))
 
         def ours(layout):
-            metrics = kinematic_metrics(layout)
+            metrics = kinematic_metrics(layout, solver=solver)
             return {name: getattr(metrics, name) for name in DIFFERENTIATED}
 
         def whole(layout):
-            sol, rates = revolution(layout, 360, "newton", with_rates=True)
+            sol, rates = revolution(layout, 360, solver, with_rates=True)
             return metrics_from(layout, sol, rates, DIFFERENTIATED)
 
         # The reference compiled as a user's jit is: compiled for latency (-O0), its
