@@ -116,6 +116,26 @@ def period_grid(n_theta: int, dtype: DTypeLike) -> jax.Array:
     return jnp.asarray(np.arange(n) * (2.0 * np.pi / 3.0 / n), dtype)
 
 
+@functools.partial(jax.custom_jvp, nondiff_argnums=(1,))
+def _extreme_value(x, kind):
+    """max (``kind`` "max") or min of every element of x; its derivative that of the first
+    extreme element (the tangent there).
+
+    JAX's own rule for ``jnp.max`` averages the tangents of the elements equal to the
+    maximum, found by comparing x with it: where XLA forms x in two fusions with different
+    roundoff (seen compiled for latency, -O0), no element compares equal and the derivative
+    is 0/0, NaN (``roller_axial_stroke``'s w.r.t. γ0 at domain layouts).
+    """
+    return jnp.max(x) if kind == "max" else jnp.min(x)
+
+
+@_extreme_value.defjvp
+def _extreme_value_jvp(kind, primals, tangents):
+    (x,), (t,) = primals, tangents
+    position = jnp.argmax(x) if kind == "max" else jnp.argmin(x)
+    return _extreme_value(x, kind), jnp.ravel(t)[position]
+
+
 # Half-width [rad of 3θ] of the window about 3θ = π/2 that holds the peak of |Δ| over the half
 # period whenever Δ's first harmonic dominates as it does over the layout domain (the largest
 # share of the others there, Σ m|b_m|/|b_1| ≈ 0.036 at R/l = 0.2, γ0 = 45°, is a third of sin of it).
@@ -272,7 +292,7 @@ class _Revolution:
                 self.positions.append((position, None))
             else:
                 self.positions.append(jnp.unravel_index(position, x.shape))
-        return jnp.max(x) if kind == "max" else jnp.min(x)
+        return _extreme_value(x, kind)
 
     def ptp(self, x):
         """Peak to peak of x over its angles (and rollers): ``extreme`` max − min."""
