@@ -48,6 +48,7 @@ from tripodjax.optimize._compiled import call, latency_bound_jit, rows_per_call
 from tripodjax.optimize.spec import (
     FORCE_QUANTITIES,
     GAF_QUANTITIES,
+    HALFSHAFT_QUANTITIES,
     KINEMATIC_QUANTITIES,
     QUANTITIES,
     REVOLUTION_QUANTITIES,
@@ -340,7 +341,7 @@ def chance_margins(structure, values, x):
     lowest margin seen is kept. The point is held fixed in the derivatives (stop_gradient):
     at the minimiser ∂g/∂x is the margin's total derivative. Returns (margins, worst code).
     """
-    rs = requirement_structure(structure)
+    rs = chance_target_structure(structure)
     names = constraint_names(rs)
     targets, betas = [], []
     for key, kind, requirements in structure.chance:
@@ -381,6 +382,24 @@ def chance_margins(structure, values, x):
     u = jax.lax.stop_gradient(jax.vmap(point)(targets, jnp.stack(betas)))
     margins, codes = jax.vmap(lambda v: limit_state(rs, values, x, v))(u)
     return jnp.take_along_axis(margins, targets[:, None], axis=1)[:, 0], jnp.max(codes, axis=0)
+
+
+def chance_target_structure(structure):
+    """The requirements the chance constraints hold with a probability, alone: no objective, no
+    chance constraints, of the spec's constraints only those a chance constraint names, the
+    halfshaft's quantities only for a halfshaft quantity's constraint among them.
+
+    Its margins and codes are those of the same requirements in the whole requirement
+    structure; the PMA steps and the margins at the inverse-FORM points compute only what the
+    targets need (with every requirement, for the life alone, they were most of a
+    chance-constrained solve's program: 2958 → 2342 kB, trace 4.9 → 2.9 s, measured).
+    """
+    named = {name for _, _, requirements in structure.chance for name in requirements}
+    constraints = tuple(c for c in structure.constraints if c[0] in named)
+    halfshaft = any(q in HALFSHAFT_QUANTITIES for _, q, _ in constraints)
+    return dataclasses.replace(
+        structure, objective=(), chance=(), constraints=constraints, halfshaft_checked=halfshaft
+    )
 
 
 def requirement_margins(structure, values, q):

@@ -440,11 +440,14 @@ class Structure:
     outboard_balls: int = 6
     outboard_reading: str = "consistent"
     outboard_conditions: tuple = ()  # [outboard.conditions] names
+    # False only in the chance constraints' own structure (problem.chance_target_structure):
+    # targets that are no halfshaft quantity's constraint compute none of the halfshaft.
+    halfshaft_checked: bool = True
 
     @property
     def halfshaft(self):
         """Whether the rest of the halfshaft is checked: it needs the vehicle's load cycles."""
-        return bool(self.vehicle_modes)
+        return bool(self.vehicle_modes) and self.halfshaft_checked
 
     @property
     def needs(self):

@@ -629,6 +629,77 @@ def test_reliability_index_and_probability_forms_are_one_constraint():
     assert (form["beta_form"] > beta) == (a > 0)
 
 
+def test_each_chance_margin_is_its_requirements_lowest_margin_on_the_sphere():
+    """The chance margins are computed from their own requirements alone
+    (``chance_target_structure``; a chance on the life computes Hertz and life, nothing of the
+    halfshaft or the objective). Each is the PMA's lowest margin on |u| = β of that requirement
+    *of the whole requirement structure*: at least the sphere's minimum found by an independent
+    search (scipy SLSQP from ±e_i, the margins through ``limit_state`` of every requirement), and
+    within the 12 PMA steps' reach of it: to roundoff where the margin is linear in u (R/d, the
+    capacity's power law, a shaft area no uncertain number moves), 1e-4 (log margin) for the
+    curved life. Targets: Hertz, life, a spec constraint's pair, a halfshaft quantity's."""
+    life_only = optimize.parse_spec(
+        TOLERANCES + "[constraints]\nmax_failure_probability_life = 1e-3\n"
+    )
+    alone = optimize.problem.chance_target_structure(life_only.structure)
+    assert alone.needs == {"static_capacity", "life_km"} and life_only.structure.halfshaft
+    from scipy import optimize as scipy_optimize
+
+    extra = (
+        "[constraints]\nmax_failure_probability_life = 1e-3\n"
+        "min_reliability_index_static_capacity = 2.0\n"
+        "max_failure_probability_R_over_d = 0.01\n"
+        "max_shaft_area = 2000.0\nmax_failure_probability_shaft_area = 0.01\n"
+    )
+    spec = optimize.parse_spec(TOLERANCES + extra)
+    design = {"R": 25.55, "d_roller": 43.5}
+    margins = optimize.evaluate(spec, design)["constraints"]
+    structure = requirement_structure(spec.structure)
+    names = optimize.problem.constraint_names(structure)
+    values, x = optimize.problem.design_values(spec, design)
+    values = jax.tree_util.tree_map(jnp.asarray, values)
+    with jax.enable_x64(True):
+        x = jnp.asarray(x)
+
+        def margins_at(u):
+            return optimize.problem.limit_state(structure, values, x, u)[0]
+
+        every = jax.jit(lambda u: (margins_at(u), jax.jacfwd(margins_at)(u)))  # one program
+        checked = 0
+        for key, kind, requirements in spec.structure.chance:
+            number = spec.values["constraints"][key]
+            beta = -stats.norm.ppf(number) if kind == "probability" else number
+            for name in requirements:
+                i = names.index(name)
+
+                def g(u, i=i):
+                    return [np.asarray(a)[i] for a in every(jnp.asarray(u))]
+
+                searches = [
+                    scipy_optimize.minimize(
+                        g,
+                        beta * start,
+                        jac=True,
+                        constraints=[
+                            {
+                                "type": "eq",
+                                "fun": lambda u, b=beta: u @ u - b * b,
+                                "jac": lambda u: 2 * u,
+                            }
+                        ],
+                        method="SLSQP",
+                        options={"ftol": 1e-14, "maxiter": 300},
+                    )
+                    for start in np.vstack([np.eye(4), -np.eye(4)])
+                ]
+                lowest = min(r.fun for r in searches if r.success)
+                pma = margins[key if len(requirements) == 1 else f"{key}:{name}"]
+                tolerance = 1e-4 if name == "life" else 1e-12
+                assert lowest - 1e-12 <= pma <= lowest + tolerance, (name, pma, lowest)
+                checked += 1
+    assert checked == 5
+
+
 def test_bench_monte_carlo_rate_runs_small():
     """The benchmark line's function end to end at a small size (figures measured, not asserted)."""
     from tripodjax.optimize.bench import monte_carlo_rate
