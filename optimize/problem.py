@@ -686,9 +686,35 @@ def gear_names(values):
     return [str(i + 1) for i in range(len(values["vehicle.gears"]["ratios"]))] + ["R"]
 
 
+# The spec's sections only the solve reads (its box, terms, limits, controls, tolerances).
+_SOLVE_SECTIONS = ("bounds", "constraints", "objective", "solver", "uncertainty")
+
+
+def report_arguments(structure, values):
+    """(structure, values) for a report's program that reads nothing only the solve reads: the
+    structure with no objective, constraints, chance constraints or uncertain inputs, newton at
+    360 angles, one start and one iteration; the values without the solve's sections. The life's
+    and the halfshaft's report programs take these: specs that differ only there share them (a
+    cold ``optimize-joint`` compiled the life's twice, for the spec and its full-fidelity check).
+    """
+    structure = dataclasses.replace(
+        structure,
+        objective=(),
+        constraints=(),
+        chance=(),
+        uncertainty=(),
+        fidelity="newton",
+        n_theta=360,
+        starts=1,
+        max_outer=1,
+        inner_steps=1,
+    )
+    return structure, {k: v for k, v in values.items() if k not in _SOLVE_SECTIONS}
+
+
 def _life_report(structure, values, x):
     """The life of design x, its damage shares and M_max (the ``life`` section of the report)."""
-    out = call(_life, structure, values, np.asarray(x))
+    out = call(_life, *report_arguments(structure, values), np.asarray(x))
     result, forward, backward = jax.tree_util.tree_map(np.asarray, out)
     v = values["life"]
     conditions = [

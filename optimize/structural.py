@@ -34,6 +34,7 @@ from tripodjax.optimize.problem import (
     gear_names,
     load_cycles,
     load_spectrum,
+    report_arguments,
     spec_design,
 )
 from tripodjax.optimize.spec import SHAFT_VARIABLES, Spec, shaft_variable
@@ -246,7 +247,9 @@ def halfshaft_report(spec: Spec, design: Mapping[str, float] | None = None) -> d
         spec, spec_design(structure, spec.values) if design is None else design
     )
     with jax.enable_x64(True):  # float64, scoped to this call
-        out = jax.tree_util.tree_map(np.asarray, call(_halfshaft, structure, values, x))
+        out = jax.tree_util.tree_map(
+            np.asarray, call(_halfshaft, *report_arguments(structure, values), x)
+        )
     s, o, geometry = values["shaft"], values["outboard"], out["sections"]
     forward, backward = map(float, out["torque"])
     gears = gear_names(values)

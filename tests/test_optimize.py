@@ -381,6 +381,28 @@ def test_a_spec_differing_only_in_vehicle_numbers_does_not_retrace(default_resul
     assert float(m_max(spec.structure, spec.values)) > float(m_max(SPEC.structure, SPEC.values))
 
 
+def test_the_life_and_halfshaft_reports_are_compiled_once_for_specs_differing_in_the_solve():
+    """The life's and the halfshaft's report programs read no objective, constraint, solver
+    level or optimiser control: a spec differing only there (the full-fidelity check's, a
+    chance constraint, another objective) reuses them, and reports the same numbers."""
+    from tripodjax.optimize import structural
+    from tripodjax.optimize.problem import _life, life_report
+    from tripodjax.optimize.uncertainty import DEFAULT_TOLERANCES_TOML
+
+    design = {"R": 26.0, "d_roller": 41.0}
+    other = optimize.parse_spec(
+        DEFAULT_TOLERANCES_TOML
+        + "[solver]\nfidelity = 'newton'\nn_theta = 120\n[objective]\nw_gaf_rms = 0.0\n"
+        + "[constraints]\nmax_failure_probability_life = 1e-3\n"
+    )
+    assert other.structure != SPEC.structure
+    life, halfshaft = life_report(SPEC, design), structural.halfshaft_report(SPEC, design)
+    before = (_life._cache_size(), structural._halfshaft._cache_size())
+    assert life_report(other, design) == life
+    assert structural.halfshaft_report(other, design) == halfshaft
+    assert (_life._cache_size(), structural._halfshaft._cache_size()) == before
+
+
 def test_catalogue_landscape_and_sensitivities_reuse_the_solve_program(default_result):
     """Points are evaluated by the solve's own compiled program (evaluate-only rows)."""
     from tripodjax.optimize._compiled import rows_per_call
