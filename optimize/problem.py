@@ -690,24 +690,26 @@ def gear_names(values):
 _SOLVE_SECTIONS = ("bounds", "constraints", "objective", "solver", "uncertainty")
 
 
-def report_arguments(structure, values):
+def report_arguments(structure, values, level=False):
     """(structure, values) for a report's program that reads nothing only the solve reads: the
-    structure with no objective, constraints, chance constraints or uncertain inputs, newton at
-    360 angles, one start and one iteration; the values without the solve's sections. The life's
-    and the halfshaft's report programs take these: specs that differ only there share them (a
-    cold ``optimize-joint`` compiled the life's twice, for the spec and its full-fidelity check).
+    structure with no objective, constraints, chance constraints or uncertain inputs, one start
+    and one iteration, and newton at 360 angles unless ``level`` (its own level and grid kept);
+    the values without the solve's sections. The life's, the halfshaft's (``level`` False) and
+    the forces' (``level`` True) report programs take these: specs that differ only there share
+    them (a cold ``optimize-joint`` compiled the life's twice, for the spec and its full-fidelity
+    check; a spec with a chance constraint loads the default run's three from the command's cache).
     """
+    kept = {} if level else {"fidelity": "newton", "n_theta": 360}
     structure = dataclasses.replace(
         structure,
         objective=(),
         constraints=(),
         chance=(),
         uncertainty=(),
-        fidelity="newton",
-        n_theta=360,
         starts=1,
         max_outer=1,
         inner_steps=1,
+        **kept,
     )
     return structure, {k: v for k, v in values.items() if k not in _SOLVE_SECTIONS}
 
@@ -829,7 +831,7 @@ def forces_report(spec: Spec, design: Mapping[str, float]) -> dict:
     structure = check_spec(spec).structure
     values, x = design_values(spec, design)
     with jax.enable_x64(True):
-        out = call(_forces_report, structure, values, x)
+        out = call(_forces_report, *report_arguments(structure, values, level=True), x)
         torque = float(values["loads"]["gaf_torque"])
         R = float(full_design(structure, values, x)["R"])
         f = values["forces"]

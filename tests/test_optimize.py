@@ -381,12 +381,13 @@ def test_a_spec_differing_only_in_vehicle_numbers_does_not_retrace(default_resul
     assert float(m_max(spec.structure, spec.values)) > float(m_max(SPEC.structure, SPEC.values))
 
 
-def test_the_life_and_halfshaft_reports_are_compiled_once_for_specs_differing_in_the_solve():
+def test_the_life_halfshaft_and_forces_reports_are_compiled_once_for_specs_differing_in_the_solve():
     """The life's and the halfshaft's report programs read no objective, constraint, solver
-    level or optimiser control: a spec differing only there (the full-fidelity check's, a
-    chance constraint, another objective) reuses them, and reports the same numbers."""
+    level or optimiser control, the forces' only the level: a spec differing only there (the
+    full-fidelity check's level, a chance constraint, another objective) reuses them, and
+    reports the same numbers."""
     from tripodjax.optimize import structural
-    from tripodjax.optimize.problem import _life, life_report
+    from tripodjax.optimize.problem import _forces_report, _life, forces_report, life_report
     from tripodjax.optimize.uncertainty import DEFAULT_TOLERANCES_TOML
 
     design = {"R": 26.0, "d_roller": 41.0}
@@ -397,10 +398,17 @@ def test_the_life_and_halfshaft_reports_are_compiled_once_for_specs_differing_in
     )
     assert other.structure != SPEC.structure
     life, halfshaft = life_report(SPEC, design), structural.halfshaft_report(SPEC, design)
-    before = (_life._cache_size(), structural._halfshaft._cache_size())
+    programs = (_life, structural._halfshaft, _forces_report)
+    before = [p._cache_size() for p in programs]
     assert life_report(other, design) == life
     assert structural.halfshaft_report(other, design) == halfshaft
-    assert (_life._cache_size(), structural._halfshaft._cache_size()) == before
+    assert [p._cache_size() for p in programs] == before
+    # The forces' at the spec's own level: the same objective and constraints at newton, 120.
+    level = SPEC.replace_values(solver={"fidelity": "newton", "n_theta": 120})
+    forces_at_level = forces_report(level, design)
+    before = _forces_report._cache_size()
+    assert forces_report(other, design) == forces_at_level
+    assert _forces_report._cache_size() == before
 
 
 def test_catalogue_landscape_and_sensitivities_reuse_the_solve_program(default_result):
