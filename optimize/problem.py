@@ -378,6 +378,10 @@ def chance_margins(structure, values, x):
         s = jax.lax.fori_loop(0, PMA_STEPS + 1, step, init)  # the last pass only scores
         return s["best_u"]
 
+    if len(targets) == 1:  # one target (the usual case): no batch of one to trace
+        j = targets[0]
+        margins, code = limit_state(rs, values, x, jax.lax.stop_gradient(point(j, betas[0])))
+        return margins[j][None], code
     targets = jnp.asarray(targets)
     u = jax.lax.stop_gradient(jax.vmap(point)(targets, jnp.stack(betas)))
     margins, codes = jax.vmap(lambda v: limit_state(rs, values, x, v))(u)

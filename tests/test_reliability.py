@@ -698,6 +698,9 @@ def test_each_chance_margin_is_its_requirements_lowest_margin_on_the_sphere():
                 assert lowest - 1e-12 <= pma <= lowest + tolerance, (name, pma, lowest)
                 checked += 1
     assert checked == 5
+    # One chance constraint alone (no batch of targets): the same margin.
+    alone = optimize.evaluate(life_only, design)["constraints"]["max_failure_probability_life"]
+    assert alone == pytest.approx(margins["max_failure_probability_life"], abs=1e-12)
 
 
 def test_bench_monte_carlo_rate_runs_small():
