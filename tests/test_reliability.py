@@ -638,13 +638,13 @@ def test_each_chance_margin_is_its_requirements_lowest_margin_on_the_sphere():
     within the 12 PMA steps' reach of it: to roundoff where the margin is linear in u (R/d, the
     capacity's power law, a shaft area no uncertain number moves), 1e-4 (log margin) for the
     curved life. Targets: Hertz, life, a spec constraint's pair, a halfshaft quantity's."""
+    from scipy import optimize as scipy_optimize
+
     life_only = optimize.parse_spec(
         TOLERANCES + "[constraints]\nmax_failure_probability_life = 1e-3\n"
     )
     alone = optimize.problem.chance_target_structure(life_only.structure)
     assert alone.needs == {"static_capacity", "life_km"} and life_only.structure.halfshaft
-    from scipy import optimize as scipy_optimize
-
     extra = (
         "[constraints]\nmax_failure_probability_life = 1e-3\n"
         "min_reliability_index_static_capacity = 2.0\n"
@@ -699,8 +699,8 @@ def test_each_chance_margin_is_its_requirements_lowest_margin_on_the_sphere():
                 checked += 1
     assert checked == 5
     # One chance constraint alone (no batch of targets): the same margin.
-    alone = optimize.evaluate(life_only, design)["constraints"]["max_failure_probability_life"]
-    assert alone == pytest.approx(margins["max_failure_probability_life"], abs=1e-12)
+    single = optimize.evaluate(life_only, design)["constraints"]["max_failure_probability_life"]
+    assert single == pytest.approx(margins["max_failure_probability_life"], abs=1e-12)
 
 
 def test_bench_monte_carlo_rate_runs_small():
