@@ -5,13 +5,21 @@ passing float32 inputs or inside ``jax.enable_x64(False)``); the library
 itself never changes JAX's configuration.
 """
 
+import contextlib
+import json
 import os
 import shutil
+import subprocess
 import sys
 import tempfile
 
 import jax
 import pytest
+
+try:
+    import fcntl
+except ImportError:  # not POSIX: each worker makes the run-wide results itself
+    fcntl = None
 
 # Test the installed package, not the source folders: `python -m pytest` puts the repository
 # root first on sys.path, where tripodjax/ lacks the optimiser (installed as tripodjax.optimize
@@ -77,3 +85,35 @@ def float32_default():
     """Run the body with JAX's default float32 configuration."""
     with jax.enable_x64(False):
         yield
+
+
+@contextlib.contextmanager
+def _run_wide(tmp_path_factory, name):
+    """A folder shared by the run's processes (pytest-xdist's workers), held exclusively in the
+    block: the first worker makes what it holds, the others wait and find it made."""
+    root = tmp_path_factory.getbasetemp()
+    if "PYTEST_XDIST_WORKER" in os.environ:
+        root = root.parent  # the workers' base folders sit in the run's
+    folder = root / name
+    folder.mkdir(exist_ok=True)
+    with open(root / f"{name}.lock", "w") as lock:
+        if fcntl is not None:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+        yield folder
+
+
+@pytest.fixture(scope="session")
+def default_report(tmp_path_factory):
+    """``optimize-joint --out DIR --progress off`` (the default spec), run once for the whole
+    run: ``(completed process, DIR)``. Read only: a test that changes a report writes its own."""
+    from command import run_cli
+
+    with _run_wide(tmp_path_factory, "default-report") as folder:
+        out, record = folder / "out", folder / "process.json"
+        if not record.exists():
+            done = run_cli("--out", str(out), "--progress", "off")
+            fields = {"args": done.args, "returncode": done.returncode}
+            fields |= {"stdout": done.stdout, "stderr": done.stderr}
+            record.write_text(json.dumps(fields), encoding="utf-8")
+        done = subprocess.CompletedProcess(**json.loads(record.read_text(encoding="utf-8")))
+    return done, out

@@ -14,24 +14,12 @@ import time
 
 import jax
 import pytest
+from command import COMMAND, run_cli
 from reference import reference_default_design
 
 from tripodjax import Layout, forces, optimize
 
 SPEC = optimize.load_spec()
-
-
-def run_cli(*args, cwd=None, cache=None):
-    command = [
-        sys.executable,
-        "-P",  # the installed package, not the source folders of the repository root
-        "-c",
-        "from tripodjax.optimize.cli import command; command()",
-        *args,
-    ]
-    # The command caches compiled code: in the run's cache (conftest) unless ``cache`` is given.
-    env = dict(os.environ, **({"TRIPODJAX_CACHE_DIR": str(cache)} if cache else {}))
-    return subprocess.run(command, capture_output=True, text=True, timeout=900, cwd=cwd, env=env)
 
 
 def strict_json(path):
@@ -41,10 +29,9 @@ def strict_json(path):
     return json.loads(path.read_text(), parse_constant=refuse)
 
 
-@pytest.fixture(scope="module")
-def cli_run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("report")
-    return run_cli("--out", str(out), "--progress", "off"), out
+@pytest.fixture
+def cli_run(default_report):
+    return default_report
 
 
 def copy_of_the_runs_cache(destination):
@@ -168,15 +155,29 @@ def test_cli_design_is_feasible_under_evaluate(cli_run):
         ("[outboard]\nn_balls = 2\n", "outboard.n_balls = 2 is not allowed"),
     ],
 )
-def test_cli_bad_spec_exits_2_with_one_line_and_no_report(tmp_path, content, fragment):
+def test_cli_bad_spec_exits_2_with_one_line_and_no_report(tmp_path, capsys, content, fragment):
+    """The command's main() in this process (the spec is refused before anything is computed);
+    the next test runs one such case as a process of its own."""
+    from tripodjax.optimize import cli
+
     spec = tmp_path / "bad.toml"
     spec.write_text(content)
     out = tmp_path / "out"
-    result = run_cli(str(spec), "--out", str(out))
+    assert cli.main([str(spec), "--out", str(out)]) == 2
+    stdout, stderr = capsys.readouterr()
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and fragment in lines[0] and not stdout, stderr
+    assert not (out / "report.json").exists()
+
+
+def test_cli_bad_spec_in_a_process_of_its_own_exits_2_with_one_line(tmp_path):
+    spec = tmp_path / "bad.toml"
+    spec.write_text("[hertz]\nconformity = 0.9\n")
+    result = run_cli(str(spec), "--out", str(tmp_path / "out"))
     assert result.returncode == 2, result.stderr
     lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1 and fragment in lines[0] and "Traceback" not in result.stderr
-    assert not (out / "report.json").exists()
+    assert len(lines) == 1 and "hertz.conformity" in lines[0] and "Traceback" not in result.stderr
+    assert not result.stdout and not (tmp_path / "out" / "report.json").exists()
 
 
 def test_cli_bad_files_and_out_exit_2_before_computing(tmp_path):
@@ -199,6 +200,7 @@ def test_cli_bad_files_and_out_exit_2_before_computing(tmp_path):
         assert not (tmp_path / "o" / "report.json").exists()  # stopped before any optimisation
 
 
+@pytest.mark.usefixtures("default_report")  # its programs compiled once, not by two at once
 def test_cli_infeasible_spec_says_so_with_a_strict_report(tmp_path):
     spec = tmp_path / "long_life.toml"
     # No joint within the bounds lasts 1e9 km. A number of the default spec: its programs reused.
@@ -234,16 +236,7 @@ def test_cli_non_finite_problem_says_nonfinite_not_successful(tmp_path, cli_run)
 
 def _popen_cli(out, cache):
     env = dict(os.environ, TRIPODJAX_CACHE_DIR=str(cache))
-    command = [
-        sys.executable,
-        "-P",  # the installed package, not the source folders of the repository root
-        "-c",
-        "from tripodjax.optimize.cli import command; command()",
-        "--out",
-        str(out),
-        "--progress",
-        "off",
-    ]
+    command = [*COMMAND, "--out", str(out), "--progress", "off"]
     return subprocess.Popen(
         command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
     )
@@ -348,6 +341,7 @@ def test_cli_help_answers_within_a_second():
     assert "143" in result.stdout
 
 
+@pytest.mark.usefixtures("default_report")  # its programs compiled once, not by two at once
 def test_cli_report_write_failure_exits_3_and_prints_the_design(tmp_path):
     out = tmp_path / "out"
     (out / "report.json").mkdir(parents=True)  # the report cannot replace a folder

@@ -554,8 +554,10 @@ def test_form_converges_where_the_limit_state_is_curved_by_one_over_beta():
     assert life["beta_form"] == pytest.approx(np.linalg.norm(search.x), rel=1e-5)
 
 
+@pytest.mark.usefixtures("default_report")  # its programs compiled once, not by two at once
 def test_cli_reliability_table_with_the_default_tolerances(tmp_path):
-    from test_optimize_cli import run_cli, strict_json
+    from command import run_cli
+    from test_optimize_cli import strict_json
 
     out = tmp_path / "report"
     result = run_cli("--reliability", "--out", str(out), "--progress", "off")
@@ -572,6 +574,7 @@ def test_cli_reliability_table_with_the_default_tolerances(tmp_path):
     assert (out / "importance.png").stat().st_size > 0
 
 
+@pytest.mark.usefixtures("default_report")  # its programs compiled once, not by two at once
 @pytest.mark.parametrize(
     ("extra", "flags"),
     [("", ()), ("[constraints]\nmax_failure_probability_life = 1e-3\n", ("--reliability",))],
@@ -581,8 +584,9 @@ def test_cli_spec_with_its_own_uncertainty(tmp_path, extra, flags):
     """A spec's own [uncertainty] (issue 36: a TypeError after the solve, exit 1, no report):
     exit 0 and its reliability table, with a chance constraint and --reliability too. The
     sensitivities are derivatives w.r.t. the model's numbers, none of the uncertainty tables."""
+    from command import run_cli
     from reference import reference_default_design
-    from test_optimize_cli import run_cli, strict_json
+    from test_optimize_cli import strict_json
 
     spec, out = tmp_path / "spec.toml", tmp_path / "report"
     spec.write_text(TOLERANCES + extra, encoding="utf-8")

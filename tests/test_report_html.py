@@ -5,7 +5,6 @@ import json
 import math
 import os
 import re
-import subprocess
 import sys
 import tempfile
 import time
@@ -83,16 +82,9 @@ RELIABILITY = {
 SWITCH = {"life": {"loads.M_max": 0.0123, "hertz.P_d": -0.0456}}
 
 
-def run_cli(*args):
-    command = [sys.executable, "-P", "-c", "from tripodjax.optimize.cli import command; command()"]
-    # The command's cache: the run's (conftest).
-    return subprocess.run([*command, *args], capture_output=True, text=True, timeout=900)
-
-
-@pytest.fixture(scope="module")
-def run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("report")
-    done = run_cli("--out", str(out), "--progress", "off")
+@pytest.fixture
+def run(default_report):
+    done, out = default_report
     assert done.returncode == 0, done.stderr
     return out, json.loads((out / "report.json").read_text())
 
