@@ -363,7 +363,7 @@ def test_every_solver_level_and_vmap_over_layouts():
         sol, rates = revolution(layout, 120, "newton", with_rates=True)
         return forces.force_quantities(layout, sol, rates, inputs, ("gaf_third_order", "lts_mean"))
 
-    batch = jax.vmap(one)(layouts)
+    batch = jax.jit(jax.vmap(one))(layouts)  # one program, not each operation compiled alone
     for i in range(2):
         single = _quantities(
             Layout(*(float(getattr(layouts, n)[i]) for n in ("R", "l", "gamma0"))), inputs, 120
@@ -373,10 +373,10 @@ def test_every_solver_level_and_vmap_over_layouts():
     # A batch passed whole (the sweep's way: the layouts on the arrays' last axis) as under vmap.
     solved = jax.vmap(lambda layout: revolution(layout, 120, "newton", with_rates=True))(layouts)
     names = (*forces.QUANTITIES, "result")
-    whole = forces.force_quantities(layouts, *solved, inputs, names)
-    mapped = jax.vmap(lambda layout, s: forces.force_quantities(layout, *s, inputs, names))(
-        layouts, solved
-    )
+    whole = jax.jit(lambda: forces.force_quantities(layouts, *solved, inputs, names))()
+    mapped = jax.jit(
+        jax.vmap(lambda layout, s: forces.force_quantities(layout, *s, inputs, names))
+    )(layouts, solved)
     for name in names:
         assert whole[name].shape == (2,)
         np.testing.assert_allclose(whole[name], mapped[name], rtol=1e-12, err_msg=name)
