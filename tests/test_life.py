@@ -412,3 +412,35 @@ def test_evaluate_gives_the_damage_by_condition_gear_and_mode():
     assert 1 / sum(
         c["share"] / k for c, k in zip(out["conditions"], km, strict=True)
     ) == pytest.approx(out["km"], rel=1e-12)
+
+
+def test_a_first_call_compiles_one_program_not_each_operation(caplog):
+    """The chain's public functions check their arguments, then run one compiled program: a
+    first call compiled each operation alone (50–150 programs; `vehicle.load_cycles` 1.1 s,
+    `life.joint_life` 2.4 s, against 0.3 and 0.8 s). Shapes no other test uses: nothing is
+    compiled already."""
+    from test_vehicle import workbook_modes, workbook_vehicle
+
+    from tripodjax import vehicle
+
+    n = 11  # spectrum rows
+    spectrum = life.LoadSpectrum(
+        np.linspace(100.0, 1100.0, n), np.full(n, 500.0), np.full(n, 60.0), np.full(n, 1 / n)
+    )
+    conditions = life.WorkingConditions(np.radians([3.0, 7.0, 9.0]), np.array([0.2, 0.3, 0.5]))
+    modes = workbook_modes()
+    calls = {
+        "life.joint_life": lambda: life.joint_life(43.5, 25.55, spectrum, conditions, **WORKBOOK),
+        "hertz.capacities": lambda: hertz.capacities(
+            np.full(n, 43.5), 25.55, P_s=4000.0, P_sd=2500.0, **WORKBOOK
+        ),
+        "vehicle.load_cycles": lambda: vehicle.load_cycles(
+            workbook_vehicle(), modes, np.full((1, 1, 1), 1e5)
+        ),
+    }
+    for name, call in calls.items():
+        caplog.clear()
+        with jax.log_compiles(True), caplog.at_level("WARNING"):
+            jax.block_until_ready(call())
+        compiled = [r for r in caplog.records if "Finished XLA compilation" in r.getMessage()]
+        assert len(compiled) <= 2, (name, [r.getMessage() for r in compiled])

@@ -500,10 +500,32 @@ def capacities(
     gives NaN capacities and ``result = RESULTS.nonfinite``.
     Differentiable w.r.t. d, R, the conformity and the pressures; any dtype.
     """
+    arguments = dict(locals())  # the parameters, as given
     check_positive(d=d, R=R, P_s=P_s, P_d=P_d, P_sd=P_sd, C_s=C_s)
     check_conformity(conformity)
     _check_n_rollers(n_rollers)
     _check_angles(pressure_angle, helix_angle, gamma)
+    _check_longitudinal(longitudinal_conformity)
+    return _capacities(**arguments)
+
+
+@jax.jit
+def _capacities(
+    d,
+    R,
+    conformity,
+    P_s,
+    P_d,
+    P_sd,
+    C_s,
+    n_rollers,
+    pressure_angle,
+    helix_angle,
+    gamma,
+    longitudinal_conformity,
+):
+    """`capacities` past its checks: one compiled program (its operations one by one compiled
+    each on a first call)."""
     C_p, product, kappa_code = _conformity_coefficient(conformity, longitudinal_conformity)
     common = (C_p, C_s, n_rollers, pressure_angle, helix_angle)
     M_s = _torque_at_pressure(P_s, d, R, *common, 0.0)

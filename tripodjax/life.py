@@ -36,6 +36,7 @@ lives for ever: ``life_hours`` and ``joint_life`` give ``inf`` hours and km with
 """
 
 import csv
+import functools
 import math
 import os
 
@@ -57,6 +58,7 @@ from tripodjax._pytree import pytree_dataclass
 from tripodjax.hertz import (
     _all_finite,
     _check_angles,
+    _check_longitudinal,
     _check_n_rollers,
     _conformity_coefficient,
     _nan_unless,
@@ -283,6 +285,7 @@ def joint_life(
     ``result = nonfinite``. Differentiable w.r.t. d, R, the conformity, P_d and
     every spectrum and condition number.
     """
+    arguments = dict(locals())  # the parameters, as given
     if not isinstance(spectrum, LoadSpectrum):
         raise TypeError(
             f"spectrum = {spectrum!r} ({type(spectrum).__name__}) is not allowed; "
@@ -298,6 +301,27 @@ def joint_life(
     check_conformity(conformity)
     _check_n_rollers(n_rollers)
     _check_angles(pressure_angle, helix_angle)
+    _check_longitudinal(longitudinal_conformity)
+    return _joint_life(**arguments)
+
+
+@functools.partial(jax.jit, static_argnames="angle_law")
+def _joint_life(
+    d,
+    R,
+    spectrum,
+    conditions,
+    conformity,
+    P_d,
+    C_s,
+    n_rollers,
+    pressure_angle,
+    helix_angle,
+    angle_law,
+    longitudinal_conformity,
+):
+    """`joint_life` past its checks: one compiled program (its operations one by one compiled
+    each on a first call)."""
     C_p, _, kappa_code = _conformity_coefficient(conformity, longitudinal_conformity)
     M_d = _torque_at_pressure(P_d, d, R, C_p, C_s, n_rollers, pressure_angle, helix_angle, 0.0)
     rate0, terms = _damage_rate(M_d, spectrum.torque, spectrum.speed, spectrum.share)
