@@ -431,6 +431,9 @@ def test_a_first_call_compiles_one_program_not_each_operation(caplog):
     modes = workbook_modes()
     calls = {
         "life.joint_life": lambda: life.joint_life(43.5, 25.55, spectrum, conditions, **WORKBOOK),
+        "life.life_hours": lambda: life.life_hours(
+            1000.0, spectrum.torque, spectrum.speed, spectrum.share
+        ),
         "hertz.capacities": lambda: hertz.capacities(
             np.full(n, 43.5), 25.55, P_s=4000.0, P_sd=2500.0, **WORKBOOK
         ),

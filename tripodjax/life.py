@@ -145,6 +145,12 @@ def life_hours(M_d: ArrayLike, torque: ArrayLike, speed: ArrayLike, share: Array
     check_non_negative("torque", torque, " N·m")
     check_non_negative("speed", speed, " rpm")
     check_shares("share", share)
+    return _life_hours(M_d, torque, speed, share)
+
+
+@jax.jit
+def _life_hours(M_d, torque, speed, share):
+    """`life_hours` past its checks: one compiled program."""
     rate, _ = _damage_rate(M_d, torque, speed, share)
     ok = jnp.all(_all_finite(M_d, torque, speed, share))
     return _nan_unless(ok, _hours(rate))
