@@ -8,6 +8,7 @@ itself never changes JAX's configuration.
 import contextlib
 import json
 import os
+import pathlib
 import shutil
 import subprocess
 import sys
@@ -115,5 +116,18 @@ def default_report(tmp_path_factory):
             fields = {"args": done.args, "returncode": done.returncode}
             fields |= {"stdout": done.stdout, "stderr": done.stderr}
             record.write_text(json.dumps(fields), encoding="utf-8")
+            # The executables in the run's cache now: the default run's own (the tests that run
+            # the command with another structure wait for this fixture).
+            executables = pathlib.Path(os.environ[_COMMAND_CACHE]) / "executables"
+            entries = sorted(p.name for p in executables.glob("*.jaxexec"))
+            (folder / "entries.json").write_text(json.dumps(entries), encoding="utf-8")
         done = subprocess.CompletedProcess(**json.loads(record.read_text(encoding="utf-8")))
     return done, out
+
+
+@pytest.fixture(scope="session")
+def default_report_entries(default_report):
+    """The names of the executables the default run wrote in the run's command cache (the
+    tests that run the command with another structure wait for the default run first)."""
+    _, out = default_report
+    return json.loads((out.parent / "entries.json").read_text(encoding="utf-8"))

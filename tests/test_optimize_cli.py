@@ -354,9 +354,11 @@ def test_cli_report_write_failure_exits_3_and_prints_the_design(tmp_path):
     assert not any(p.name.startswith(".") for p in out.iterdir())  # no temporary files left
 
 
-def _swap_entries(executables):
-    """Swap the contents of the two largest entries (valid executables under wrong keys)."""
-    entries = sorted(executables.glob("*.jaxexec"), key=lambda p: p.stat().st_size)[-2:]
+def _swap_entries(executables, names=None):
+    """Swap the contents of the two largest entries (valid executables under wrong keys), of
+    those ``names`` where given."""
+    entries = [p for p in executables.glob("*.jaxexec") if names is None or p.name in names]
+    entries = sorted(entries, key=lambda p: p.stat().st_size)[-2:]
     assert len(entries) == 2, list(executables.iterdir())
     first, second = (p.read_bytes() for p in entries)
     entries[0].write_bytes(second)
@@ -507,9 +509,12 @@ def test_an_executable_from_jaxs_persistent_cache_is_not_kept(tmp_path):
     assert run("cached") == expected
 
 
-def test_cli_with_a_swapped_cache_entry_runs_normally_and_repairs_it(cli_run, tmp_path):
+def test_cli_with_a_swapped_cache_entry_runs_normally_and_repairs_it(
+    default_report_entries, tmp_path
+):
     cache = copy_of_the_runs_cache(tmp_path / "cache")  # entries the run below loads, all of them
-    _swap_entries(cache / "executables")
+    # Two that the default run loads (the run's cache may hold other structures' too).
+    _swap_entries(cache / "executables", default_report_entries)
     out = tmp_path / "out"
     env = dict(os.environ, TRIPODJAX_CACHE_DIR=str(cache))
     command = [sys.executable, "-P", "-m", "tripodjax.optimize.cli", "--out", str(out)]
