@@ -91,9 +91,10 @@ def float32_default():
 @contextlib.contextmanager
 def _run_wide(tmp_path_factory, name):
     """A folder shared by the run's processes (pytest-xdist's workers), held exclusively in the
-    block: the first worker makes what it holds, the others wait and find it made."""
+    block: the first worker makes what it holds, the others wait and find it made. Without
+    file locks (not POSIX) each worker has a folder of its own."""
     root = tmp_path_factory.getbasetemp()
-    if "PYTEST_XDIST_WORKER" in os.environ:
+    if "PYTEST_XDIST_WORKER" in os.environ and fcntl is not None:
         root = root.parent  # the workers' base folders sit in the run's
     folder = root / name
     folder.mkdir(exist_ok=True)
