@@ -32,6 +32,7 @@ import math
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax.typing import ArrayLike
 
 from tripodjax._checks import (
@@ -140,62 +141,87 @@ def elliptic_integrals(m: ArrayLike) -> tuple[jax.Array, jax.Array]:
 # --------------------------------------------------------------------------- ellipse ratio
 
 
+def _ratio_terms(t):
+    """(E, D) at κ = e^t (m = 1 − 1/κ²) and their t-derivatives: one AGM loop, in forward mode."""
+
+    def integrals(t):
+        _, E, D = _elliptic_agm(-jnp.expm1(-2.0 * t), jnp.exp(-2.0 * t))
+        return E, D
+
+    return jax.jvp(integrals, (t,), (jnp.ones_like(t),))
+
+
 def _log_ratio_residual(t, log1m_cos_tau):
-    """log(1 − cos τ(κ)) − log(1 − cos τ) with κ = e^t.
+    """The residual log(1 − cos τ(κ)) − log(1 − cos τ) with κ = e^t, its t-slope, E and dE/dt.
 
     1 − cos τ = 2 m1 (K − E)/(m E) = 2 m1 D / E, a product of positive,
     cancellation-free factors; log(1 − cos τ) is nearly linear in log κ over
-    the whole range, so Newton converges in a few steps from any start.
+    the whole range, so Newton converges in a few steps from any start. The slope
+    comes from the same loop as the residual (forward mode: one loop, not a loop
+    and its reverse).
     """
-    m1 = jnp.exp(-2.0 * t)
-    m = -jnp.expm1(-2.0 * t)
-    _, E, D = _elliptic_agm(m, m1)
-    return jnp.log(2.0 * D / E) - 2.0 * t - log1m_cos_tau
+    (E, D), (dE, dD) = _ratio_terms(t)
+    return jnp.log(2.0 * D / E) - 2.0 * t - log1m_cos_tau, dD / D - dE / E - 2.0, E, dE
 
 
 def _newton_log_kappa(log1m_cos_tau, cos_tau):
-    """Newton on log κ; returns (t, result code): successful, max_steps_reached or nonfinite."""
+    """Newton on log κ: (t, E(m), result code, ∂r/∂t, dE/dt).
+
+    The loop stops when a step is below 8 ε (1 + t). The terms come from the last step's
+    evaluation, one step before the returned t: E moved to it to first order (its error is of
+    the step's square, below roundoff); the slope and dE/dt, which only the derivatives use,
+    as they are. No evaluation after the loop. The code is successful, max_steps_reached or
+    nonfinite.
+    """
     dtype = jnp.result_type(cos_tau)
     tol = 8.0 * float(jnp.finfo(dtype).eps)
     # Start from the usual power-law fit κ ≈ (R_x/R_y)^(2/π).
     t0 = (2.0 / jnp.pi) * (jnp.log1p(cos_tau) - log1m_cos_tau)
-    slope = jax.grad(_log_ratio_residual)
 
     def body(carry):
-        t, n, _ = carry
-        step = -_log_ratio_residual(t, log1m_cos_tau) / slope(t, log1m_cos_tau)
-        t_new = jnp.maximum(t + step, 0.0)
+        _, t, n, _, _ = carry
+        residual, slope, E, dE = _log_ratio_residual(t, log1m_cos_tau)
+        t_new = jnp.maximum(t - residual / slope, 0.0)
         met = jnp.abs(t_new - t) <= tol * (1.0 + t_new)
         # A non-finite iterate ends the loop too (it is flagged below, not iterated on).
-        return t_new, n + 1, met | ~jnp.isfinite(t_new)
+        return (t, slope, E, dE), t_new, n + 1, met | ~jnp.isfinite(t_new), ~met
 
     def cond(carry):
-        _, n, done = carry
+        _, _, n, done, _ = carry
         return jnp.logical_and(n < _KAPPA_MAX_STEPS, jnp.logical_not(done))
 
-    t, _, done = jax.lax.while_loop(cond, body, (t0, jnp.int32(0), ~jnp.isfinite(t0)))
-    code = code_where(done, RESULTS.successful, RESULTS.max_steps_reached)
-    code = code_where(jnp.isfinite(t), code, RESULTS.nonfinite)
-    return t, code
+    nan = jnp.full_like(t0, jnp.nan)
+    start = ((nan, nan, nan, nan), t0, jnp.int32(0), ~jnp.isfinite(t0), jnp.bool_(True))
+    (t, slope, E, dE), t_new, _, _, unmet = jax.lax.while_loop(cond, body, start)
+    code = code_where(unmet, RESULTS.max_steps_reached, RESULTS.successful)
+    E = E + dE * (t_new - t)
+    code = code_where(jnp.isfinite(t_new) & jnp.isfinite(E), code, RESULTS.nonfinite)
+    return t_new, E, code, slope, dE
 
 
+def _kappa_solution(cos_tau):
+    """(log κ, E(m), code, ∂r/∂t, dE/dt) for one cos τ (``_newton_log_kappa``)."""
+    return _newton_log_kappa(jnp.log1p(-cos_tau), cos_tau)
+
+
+@jax.custom_jvp
 def _log_kappa(cos_tau):
-    """(log κ, result code) for one cos τ in [0, 1), by Newton with implicit derivatives."""
-    log1m = jnp.log1p(-cos_tau)
+    """(log κ, E(m), result code) for one cos τ in [0, 1), by Newton with implicit derivatives.
 
-    def solve(f, t0):
-        t, code = _newton_log_kappa(log1m, cos_tau)
-        # custom_root differentiates its aux output too: carry the code as a float.
-        return t, code.astype(t.dtype)
+    The derivatives are the implicit function theorem's at the answer, from terms the solve
+    computes anyway: dt/d(cos τ) = −(∂r/∂cos τ)/(∂r/∂t) with ∂r/∂cos τ = 1/(1 − cos τ)
+    (r the residual of ``_log_ratio_residual``), dE = (dE/dt) dt; no loop is differentiated.
+    """
+    t, E, code, _, _ = _kappa_solution(cos_tau)
+    return t, E, code
 
-    t, code = jax.lax.custom_root(
-        lambda t: _log_ratio_residual(t, log1m),
-        jnp.zeros_like(cos_tau),
-        solve,
-        lambda g, y: y / g(jnp.ones_like(y)),
-        has_aux=True,
-    )
-    return t, jax.lax.stop_gradient(code).astype(jnp.int32)
+
+@_log_kappa.defjvp
+def _log_kappa_jvp(primals, tangents):
+    (cos_tau,), (d_cos_tau,) = primals, tangents
+    t, E, code, slope, dE = _kappa_solution(cos_tau)
+    dt = -d_cos_tau / ((1.0 - cos_tau) * slope)
+    return (t, E, code), (dt, dE * dt, np.zeros(jnp.shape(code), jax.dtypes.float0))
 
 
 @pytree_dataclass
@@ -227,9 +253,8 @@ def _check_cos_tau(cos_tau, name="cos_tau"):
 def _hertz_coefficients(cos_tau):
     c = jnp.asarray(cos_tau, jnp.result_type(cos_tau, 0.0))
     c = _nan_unless((c >= 0) & (c < 1), c)
-    t, code = jnp.vectorize(_log_kappa)(c)
+    t, E, code = jnp.vectorize(_log_kappa)(c)
     kappa = jnp.exp(t)
-    _, E, _ = _elliptic_agm(-jnp.expm1(-2.0 * t), jnp.exp(-2.0 * t))
     mu = jnp.cbrt(2.0 * kappa**2 * E / jnp.pi)
     nu = jnp.cbrt(2.0 * E / (jnp.pi * kappa))
     return HertzCoefficients(kappa=kappa, mu=mu, nu=nu, mu_nu=mu * nu, result=code)
