@@ -151,21 +151,21 @@ def _ratio_terms(t):
     return jax.jvp(integrals, (t,), (jnp.ones_like(t),))
 
 
-def _log_ratio_residual(t, log1m_cos_tau):
-    """The residual log(1 − cos τ(κ)) − log(1 − cos τ) with κ = e^t, its t-slope, E and dE/dt.
+def _ratio_log(t):
+    """log(1 − cos τ(κ)) at κ = e^t, its t-slope, E(m) and dE/dt.
 
     1 − cos τ = 2 m1 (K − E)/(m E) = 2 m1 D / E, a product of positive,
     cancellation-free factors; log(1 − cos τ) is nearly linear in log κ over
     the whole range, so Newton converges in a few steps from any start. The slope
-    comes from the same loop as the residual (forward mode: one loop, not a loop
+    comes from the same loop as the value (forward mode: one loop, not a loop
     and its reverse).
     """
     (E, D), (dE, dD) = _ratio_terms(t)
-    return jnp.log(2.0 * D / E) - 2.0 * t - log1m_cos_tau, dD / D - dE / E - 2.0, E, dE
+    return jnp.log(2.0 * D / E) - 2.0 * t, dD / D - dE / E - 2.0, E, dE
 
 
 def _newton_log_kappa(log1m_cos_tau, cos_tau):
-    """Newton on log κ: (t, E(m), result code, ∂r/∂t, dE/dt).
+    """Newton on log κ: (t, ∂r/∂t, E(m), dE/dt, result code).
 
     The loop stops when a step is below 8 ε (1 + t). The terms come from the last step's
     evaluation, one step before the returned t: E moved to it to first order (its error is of
@@ -180,8 +180,8 @@ def _newton_log_kappa(log1m_cos_tau, cos_tau):
 
     def body(carry):
         _, t, n, _, _ = carry
-        residual, slope, E, dE = _log_ratio_residual(t, log1m_cos_tau)
-        t_new = jnp.maximum(t - residual / slope, 0.0)
+        value, slope, E, dE = _ratio_log(t)
+        t_new = jnp.maximum(t - (value - log1m_cos_tau) / slope, 0.0)
         met = jnp.abs(t_new - t) <= tol * (1.0 + t_new)
         # A non-finite iterate ends the loop too (it is flagged below, not iterated on).
         return (t, slope, E, dE), t_new, n + 1, met | ~jnp.isfinite(t_new), ~met
@@ -196,32 +196,32 @@ def _newton_log_kappa(log1m_cos_tau, cos_tau):
     code = code_where(unmet, RESULTS.max_steps_reached, RESULTS.successful)
     E = E + dE * (t_new - t)
     code = code_where(jnp.isfinite(t_new) & jnp.isfinite(E), code, RESULTS.nonfinite)
-    return t_new, E, code, slope, dE
-
-
-def _kappa_solution(cos_tau):
-    """(log κ, E(m), code, ∂r/∂t, dE/dt) for one cos τ (``_newton_log_kappa``)."""
-    return _newton_log_kappa(jnp.log1p(-cos_tau), cos_tau)
+    return t_new, slope, E, dE, code
 
 
 @jax.custom_jvp
 def _log_kappa(cos_tau):
-    """(log κ, E(m), result code) for one cos τ in [0, 1), by Newton with implicit derivatives.
+    """(log κ, ∂r/∂t, E(m), dE/dt, result code) for one cos τ in [0, 1), by Newton.
 
     The derivatives are the implicit function theorem's at the answer, from terms the solve
     computes anyway: dt/d(cos τ) = −(∂r/∂cos τ)/(∂r/∂t) with ∂r/∂cos τ = 1/(1 − cos τ)
-    (r the residual of ``_log_ratio_residual``), dE = (dE/dt) dt; no loop is differentiated.
+    (r = ``_ratio_log``(t) − log(1 − cos τ)), dE = (dE/dt) dt; no loop is differentiated.
+    The slope and dE/dt are outputs too, so that a derivative of second order (a reverse
+    pass through a Jacobian) has theirs: from the AGM at the answer, in forward mode.
     """
-    t, E, code, _, _ = _kappa_solution(cos_tau)
-    return t, E, code
+    return _newton_log_kappa(jnp.log1p(-cos_tau), cos_tau)
 
 
 @_log_kappa.defjvp
 def _log_kappa_jvp(primals, tangents):
     (cos_tau,), (d_cos_tau,) = primals, tangents
-    t, E, code, slope, dE = _kappa_solution(cos_tau)
+    t, slope, E, dE, code = _log_kappa(cos_tau)
     dt = -d_cos_tau / ((1.0 - cos_tau) * slope)
-    return (t, E, code), (dt, dE * dt, np.zeros(jnp.shape(code), jax.dtypes.float0))
+    # The slope's and dE/dt's own tangents: unused (and removed by the compiler) unless a
+    # derivative of second order asks for them.
+    _, (_, d_slope, _, d_dE) = jax.jvp(_ratio_log, (t,), (dt,))
+    tangent = (dt, d_slope, dE * dt, d_dE, np.zeros(jnp.shape(code), jax.dtypes.float0))
+    return (t, slope, E, dE, code), tangent
 
 
 @pytree_dataclass
@@ -253,7 +253,7 @@ def _check_cos_tau(cos_tau, name="cos_tau"):
 def _hertz_coefficients(cos_tau):
     c = jnp.asarray(cos_tau, jnp.result_type(cos_tau, 0.0))
     c = _nan_unless((c >= 0) & (c < 1), c)
-    t, E, code = jnp.vectorize(_log_kappa)(c)
+    t, _, E, _, code = jnp.vectorize(_log_kappa)(c)
     kappa = jnp.exp(t)
     mu = jnp.cbrt(2.0 * kappa**2 * E / jnp.pi)
     nu = jnp.cbrt(2.0 * E / (jnp.pi * kappa))
