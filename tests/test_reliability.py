@@ -707,6 +707,71 @@ def test_each_chance_margin_is_its_requirements_lowest_margin_on_the_sphere():
     assert single == pytest.approx(margins["max_failure_probability_life"], abs=1e-12)
 
 
+def test_chance_margin_derivatives_are_those_at_the_point_held_fixed():
+    """The chance margin's derivatives come from the PMA search's own linearisation (along x,
+    as the solve takes them) and from a forward pass at the point (along a spec number, and the
+    x-gradient's own derivative, as the sensitivities take them): each equals the derivative
+    of the requirement's margin with the inverse-FORM point held fixed, which agrees with
+    central differences. The number: R's standard deviation (it moves the point's R, so the
+    margin's x-gradient depends on it). A reverse pass through the κ solve's derivatives is
+    test_hertz's."""
+    from jax.scipy.special import ndtri
+
+    from tripodjax._compile import latency_bound_jit
+    from tripodjax.optimize import problem
+
+    spec = optimize.parse_spec(TOLERANCES + "[constraints]\nmax_failure_probability_life = 1e-3\n")
+    with jax.enable_x64(True):
+        values, x = problem.design_values(spec, {"R": 25.55, "d_roller": 43.5})
+        values = jax.tree_util.tree_map(jnp.asarray, values)
+        x = jnp.asarray(x)
+        rs = problem.chance_target_structure(spec.structure)
+        j = problem.constraint_names(rs).index("life")
+        search = latency_bound_jit(lambda v, x: problem._pma_search(rs, v, x, j, -ndtri(1e-3)))
+        u = search(values, x)[3]
+        assert float(jnp.linalg.norm(u)) == pytest.approx(-stats.norm.ppf(1e-3), rel=1e-12)
+
+        def with_sd(sd):
+            table = values["uncertainty"]
+            return {**values, "uncertainty": {**table, "R": {**table["R"], "spread": sd}}}
+
+        def chance(sd, x):
+            return problem.chance_margins(spec.structure, with_sd(sd), x)[0][0]
+
+        def held(sd, x):
+            return problem._requirement(rs, with_sd(sd), x, j, u)[0]
+
+        @latency_bound_jit
+        def derivatives(sd, x):  # value, along the sd, along x, the x-gradient along the sd
+            return (
+                chance(sd, x),
+                jax.jacfwd(chance, 0)(sd, x),
+                jax.jacrev(chance, 1)(sd, x),
+                jax.jacfwd(jax.jacfwd(chance, 1), 0)(sd, x),
+            )
+
+        # The held margin: its value and x-gradient, and its derivative along the sd.
+        value_and_gradient = latency_bound_jit(jax.value_and_grad(held, 1))
+        along_sd = latency_bound_jit(jax.jacfwd(held, 0))
+        sd = values["uncertainty"]["R"]["spread"]
+        value, d_sd, gradient, mixed = derivatives(sd, x)
+        reference, reference_gradient = value_and_gradient(sd, x)
+        assert float(value) == pytest.approx(float(reference), abs=1e-12)
+        assert float(d_sd) == pytest.approx(float(along_sd(sd, x)), rel=1e-12)
+        np.testing.assert_allclose(gradient, reference_gradient, rtol=1e-12)
+        # Against central differences of the held margin and of its exact x-gradient.
+        step = 1e-6 * np.asarray(x)
+        for i in range(x.shape[0]):
+            e = jnp.zeros_like(x).at[i].set(step[i])
+            difference = value_and_gradient(sd, x + e)[0] - value_and_gradient(sd, x - e)[0]
+            assert float(gradient[i]) == pytest.approx(float(difference) / (2 * step[i]), rel=1e-6)
+        h = 1e-3 * float(sd)
+        difference = (value_and_gradient(sd + h, x)[1] - value_and_gradient(sd - h, x)[1]) / (2 * h)
+        scale = float(np.max(np.abs(mixed)))  # d_roller's entry is 0
+        assert scale > 0
+        np.testing.assert_allclose(mixed, difference, rtol=1e-6, atol=1e-6 * scale)
+
+
 def test_bench_monte_carlo_rate_runs_small():
     """The benchmark line's function end to end at a small size (figures measured, not asserted)."""
     from tripodjax.optimize.bench import monte_carlo_rate
