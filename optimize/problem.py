@@ -374,8 +374,8 @@ def _pma_search(rs, values, x, j, beta):
     Each step evaluates the margin with its derivatives along u and along x (forward mode, one
     linearisation), and the step that finds the lowest margin keeps all three: the margin at
     the point and its Jacobian in x come out of the loop, and the program holds the
-    requirement's model once (evaluated again at the point it was one more copy: the
-    chance-constrained solve compiled in 4.8 s instead of 6.7 s without it).
+    requirement's model once (evaluated again at the point, it was one more copy in the
+    solve's program; see docs/speed-accuracy.md).
     """
     values, x = jax.lax.stop_gradient((values, x))
     n = len(rs.uncertainty)

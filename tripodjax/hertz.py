@@ -141,26 +141,21 @@ def elliptic_integrals(m: ArrayLike) -> tuple[jax.Array, jax.Array]:
 # --------------------------------------------------------------------------- ellipse ratio
 
 
-def _ratio_terms(t):
-    """(E, D) at κ = e^t (m = 1 − 1/κ²) and their t-derivatives: one AGM loop, in forward mode."""
+def _ratio_log(t):
+    """log(1 − cos τ(κ)) at κ = e^t, its t-slope, E(m) and dE/dt (m = 1 − 1/κ²).
+
+    1 − cos τ = 2 m1 (K − E)/(m E) = 2 m1 D / E, a product of positive,
+    cancellation-free factors; log(1 − cos τ) is nearly linear in log κ over
+    the whole range, so Newton converges in a few steps from any start. The
+    t-derivatives come from the same AGM loop as the values (forward mode: one
+    loop, not a loop and its reverse).
+    """
 
     def integrals(t):
         _, E, D = _elliptic_agm(-jnp.expm1(-2.0 * t), jnp.exp(-2.0 * t))
         return E, D
 
-    return jax.jvp(integrals, (t,), (jnp.ones_like(t),))
-
-
-def _ratio_log(t):
-    """log(1 − cos τ(κ)) at κ = e^t, its t-slope, E(m) and dE/dt.
-
-    1 − cos τ = 2 m1 (K − E)/(m E) = 2 m1 D / E, a product of positive,
-    cancellation-free factors; log(1 − cos τ) is nearly linear in log κ over
-    the whole range, so Newton converges in a few steps from any start. The slope
-    comes from the same loop as the value (forward mode: one loop, not a loop
-    and its reverse).
-    """
-    (E, D), (dE, dD) = _ratio_terms(t)
+    (E, D), (dE, dD) = jax.jvp(integrals, (t,), (jnp.ones_like(t),))
     return jnp.log(2.0 * D / E) - 2.0 * t, dD / D - dE / E - 2.0, E, dE
 
 
