@@ -463,6 +463,32 @@ def test_map_chunks_refuses_an_output_without_one_row_per_input(fn, shape):
             map_chunks(fn, np.zeros(0), 4)
 
 
+@pytest.mark.parametrize("transform", ["grad", "jit", "vmap"])
+def test_sweep_under_a_transformation_says_what_to_differentiate_instead(transform):
+    """sweep is a host-side driver (NumPy out): traced inputs are a one-line TypeError naming
+    the per-layout functions to transform instead, not NumPy's TracerArrayConversionError."""
+    batch = layouts(2)
+    ones = jnp.ones(2)
+
+    def total(scale):
+        scaled = Layout(batch.R * scale, batch.l, batch.gamma0)
+        return sweep(scaled, outputs=("irregularity",), progress=False)["irregularity"].sum()
+
+    run = {
+        "grad": lambda: jax.grad(lambda s: total(s[0]))(ones),
+        "jit": lambda: jax.jit(total)(1.0),
+        "vmap": lambda: jax.vmap(total)(ones),
+    }[transform]
+    with pytest.raises(TypeError) as info:
+        run()
+    message = str(info.value)
+    assert message.startswith("sweep was called under a JAX transformation"), message
+    assert "kinematic_metrics" in message and "forces_halfshaft" in message
+    assert "\n" not in message
+    with pytest.raises(TypeError, match="map_chunks was called under a JAX transformation"):
+        jax.jit(lambda x: map_chunks(lambda part: part, x, 4))(jnp.zeros(3))
+
+
 @pytest.mark.parametrize(
     "kwargs, error, message",
     [

@@ -96,6 +96,16 @@ def _check_layouts(layouts):
     return shapes["R"][0]
 
 
+def _check_concrete(what: str, inputs: object, instead: str) -> None:
+    """A host-side driver's ``inputs`` are concrete: not traced by jax.jit, jax.grad or jax.vmap."""
+    if any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree_util.tree_leaves(inputs)):
+        raise TypeError(
+            f"{what} was called under a JAX transformation (jax.jit, jax.grad, jax.vmap, …); "
+            "it runs outside them (it compiles its own chunks of rows and returns NumPy "
+            f"arrays): {instead}"
+        )
+
+
 def _check_one_number(name: str, inputs: object) -> None:
     """Every field of ``inputs`` (a pytree) one number, the same for every layout of a sweep."""
     leaves = jax.tree_util.tree_leaves_with_path(inputs)
@@ -299,6 +309,7 @@ def map_chunks(
     Returns:
         ``fn``'s output pytree with NumPy leaves of leading length N.
     """
+    _check_concrete("map_chunks", inputs, "call fn itself inside the transformation")
     chunk_size = int(check_integer("chunk_size", chunk_size, minimum=1))
     leaves, treedef = jax.tree_util.tree_flatten(inputs)
     leaves = [np.asarray(leaf) for leaf in leaves]
@@ -429,9 +440,22 @@ def sweep(
         ``result_counts`` (layouts per result code) when ``"result"`` or
         ``"converged"`` is among the outputs or ``throw`` is set. The working
         dtype is that of the layout arrays.
+
+    A host-side driver: it runs outside ``jax.jit``, ``jax.grad`` and ``jax.vmap`` (a
+    TypeError says so). For derivatives, differentiate
+    [`kinematic_metrics`][tripodjax.kinematics.kinematic_metrics],
+    [`gaf_halfshaft`][tripodjax.friction.gaf_halfshaft] or
+    [`forces_halfshaft`][tripodjax.forces.forces_halfshaft] of one layout, with ``jax.vmap``
+    over the layouts.
     """
     if removed:
         _reject_removed("sweep", removed)
+    _check_concrete(
+        "sweep",
+        (layouts, gaf, forces),
+        "for derivatives or inside jax.jit, take kinematic_metrics, gaf_halfshaft or "
+        "forces_halfshaft of one layout, with jax.vmap over the layouts",
+    )
     n = _check_layouts(layouts)
     solver = solvers.resolve(solver)
     outputs = _check_outputs(outputs, gaf, forces)
