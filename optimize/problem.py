@@ -804,8 +804,6 @@ def report_arguments(structure, values, level=False):
         chance=(),
         uncertainty=(),
         starts=1,
-        max_outer=1,
-        inner_steps=1,
         **kept,
     )
     return structure, {k: v for k, v in values.items() if k not in _SOLVE_SECTIONS}

@@ -48,7 +48,7 @@ from tripodjax.optimize.problem import (
     objective_and_margins,
     to_spec_units,
 )
-from tripodjax.optimize.spec import Spec, Structure
+from tripodjax.optimize.spec import MAX_OUTER_ITERATIONS, Spec, Structure
 from tripodjax.progress import ProgressMeter, resolve
 from tripodjax.results import RESULTS
 
@@ -219,7 +219,8 @@ def _problem(structure, values, z0, x_eval, evaluate_only):
 
     def initial():
         evaluation = _zero_evaluation(with_jacobian, to_x(z0))
-        nan_history = jnp.full((structure.max_outer + 1,), jnp.nan, dtype)
+        # One entry per outer iteration, for any solver.max_outer (a number, not structure).
+        nan_history = jnp.full((MAX_OUTER_ITERATIONS + 1,), jnp.nan, dtype)
         return dict(
             start=jnp.bool_(True),
             done=jnp.bool_(False),
@@ -269,7 +270,7 @@ def _problem(structure, values, z0, x_eval, evaluate_only):
         # onto its bound would be pushed on into the sigmoid's flat tail (σ' ~ 1e-12 at
         # tolerance 1e-8), from which no later run could bring it back.
         small = stationarity <= INNER_FRACTION * tolerance
-        run_over = jnp.logical_or(i >= structure.inner_steps, small)
+        run_over = jnp.logical_or(i >= values["solver"]["inner_steps"], small)
         inner_over = s["start"] | stalled | (step & run_over)
         # The end of an inner run: multipliers, penalty, KKT residual (no update at the start).
         f, c, grad_f, jac = current[:4]
@@ -286,7 +287,7 @@ def _problem(structure, values, z0, x_eval, evaluate_only):
         multipliers = jnp.where(better, fitted, lam_new)
         kkt = jnp.where(better, kkt_fitted, kkt)
         kkt = jnp.where(jnp.isfinite(kkt), kkt, jnp.inf)
-        done = inner_over & ((kkt <= tolerance) | (s["k"] >= structure.max_outer))
+        done = inner_over & ((kkt <= tolerance) | (s["k"] >= values["solver"]["max_outer"]))
         done = done | evaluate_only
         lam = jnp.where(inner_over, lam_new, s["lam"])
         rho = jnp.where(inner_over, rho_new, s["rho"])

@@ -5,8 +5,9 @@ the file (``*_deg``) and in radians inside. [`load_spec`][tripodjax.optimize.loa
 returns a [`Spec`][tripodjax.optimize.Spec]: a frozen pytree whose *numbers* are
 leaves (traced by ``jit``: a new value never recompiles) and whose *structure*
 (which variables are free, which objective terms and constraints exist, list
-lengths, ``n_theta``, the number of starts, the fidelity, iteration counts) is
-static. Any problem in the file raises [`SpecError`][tripodjax.optimize.SpecError]
+lengths, ``n_theta``, the number of starts, the fidelity) is static; the solver's
+iteration counts are numbers (a new ``max_outer`` or ``inner_steps`` reuses the compiled
+solve). Any problem in the file raises [`SpecError`][tripodjax.optimize.SpecError]
 with one line naming the key, the value and what is allowed.
 """
 
@@ -365,7 +366,7 @@ GAF_MODELS = ("stroke", "printed", "forces")
 INTEGER_LIMITS = {
     "n_theta": (6, 3600, "a multiple of 6"),
     "starts": (1, 64, ""),
-    "max_outer": (1, 200, ""),
+    "max_outer": (1, 200, ""),  # MAX_OUTER_ITERATIONS
     "inner_steps": (1, 200, ""),
 }
 # A solve evaluates the revolution's n_theta angles for each start max_outer · inner_steps times
@@ -373,6 +374,7 @@ INTEGER_LIMITS = {
 # its work. Measured on a 2-core CPU at 1.25 µs per angle and start, the worst case at MAX_WORK is
 # about a minute (the default spec, 168 × 4 × 25 × 30 = 5.04e5, about 20 s; typically 0.1 s).
 WORK_KEYS = ("n_theta", "starts", "max_outer", "inner_steps")
+MAX_OUTER_ITERATIONS = INTEGER_LIMITS["max_outer"][1]
 MAX_WORK = 1.5e6
 MAX_LIST_LENGTH = 1000
 # Text in a spec: a key or a text value (a name, a choice) is a label of the report's tables and
@@ -431,8 +433,6 @@ class Structure:
     fidelity: str
     n_theta: int
     starts: int
-    max_outer: int
-    inner_steps: int
     uncertainty: tuple = ()  # uncertainty.Input per uncertain number
     chance: tuple = ()  # (key, "probability" or "index", constrained requirement names)
     shaft_sections: tuple = ()  # [shaft] section names
@@ -1197,7 +1197,12 @@ def _check(table):
     if not (m_max_from_vehicle or spectrum_from_vehicle):
         _no_halfshaft(free, terms, constraints)
     inputs, v["uncertainty"] = _uncertainty(table, v, free)
-    v["solver"] = {"tolerance": _number(table, "solver", "tolerance", 1e-12, 1e-1)}
+    # The iteration counts are numbers (the solve's loop bounds), not structure: a new count
+    # reuses the compiled solve, whose history arrays hold MAX_OUTER_ITERATIONS + 1 entries.
+    v["solver"] = {
+        "tolerance": _number(table, "solver", "tolerance", 1e-12, 1e-1),
+        **{k: np.asarray(float(sizes.pop(k))) for k in ("max_outer", "inner_steps")},
+    }
     structure = Structure(
         free=free,
         objective=terms,

@@ -368,6 +368,27 @@ def test_a_changed_number_does_not_retrace(default_result):
     assert changed.converged and changed.design["d_roller"] > default_result.design["d_roller"]
 
 
+def test_iteration_counts_are_numbers_that_bound_the_loop_without_retracing(default_result):
+    """solver.max_outer and solver.inner_steps are traced loop bounds: other counts reuse the
+    compiled solve, and the solve stops at them (the history holds max_outer + 1 entries at
+    most: the start and each outer iteration), converging where the default converged."""
+    before = solver.solve_batch._cache_size()
+    short = optimize.solve(SPEC.replace_values(solver={"max_outer": 2}), progress=False)
+    assert solver.solve_batch._cache_size() == before
+    assert not short.kkt_converged and len(short.history["objective"]) == 3
+    few = optimize.solve(SPEC.replace_values(solver={"inner_steps": 1}), progress=False)
+    assert solver.solve_batch._cache_size() == before
+    # One L-BFGS step an outer iteration: more outer iterations than the default's.
+    assert len(few.history["objective"]) > len(default_result.history["objective"])
+    longest = optimize.solve(
+        SPEC.replace_values(solver={"max_outer": 200, "inner_steps": 1}), progress=False
+    )
+    assert len(longest.history["objective"]) == 201  # the key's upper limit fits the history
+    again = optimize.solve(SPEC.replace_values(solver={"max_outer": 60}), progress=False)
+    assert solver.solve_batch._cache_size() == before
+    assert again.converged and again.design == default_result.design  # the same path
+
+
 def test_a_spec_differing_only_in_vehicle_numbers_does_not_retrace(default_result):
     """Tyre radius and adhesion move M_max and the life (the reference chain moves with them)."""
     before = solver.solve_batch._cache_size()

@@ -4,7 +4,6 @@ References come from re-optimising the perturbed problem (one batch per spec, wa
 the optimum), never from fixed design numbers: the default design may move.
 """
 
-import dataclasses
 import json
 
 import jax
@@ -97,16 +96,16 @@ def _reoptimised_elasticities(spec, result, labels):
         section, key, index = cells[label]
         for factor in (1 + STEP, 1 - STEP):
             scenarios.append(_perturbed(spec, section, key, index, factor))
-    # Warm-started at the optimum, with room for the outer iterations a tight tolerance needs.
-    patient = dataclasses.replace(
-        spec, structure=dataclasses.replace(spec.structure, max_outer=100)
-    )
-    results = solver.run(patient, scenarios, progress=False, starts=_at(spec, result.x))
+    # Warm-started at the optimum, with room for the outer iterations a tight tolerance needs
+    # (more than a spec file's work limit lets it ask for at these sizes).
+    for values in scenarios:
+        values["solver"]["max_outer"] = np.asarray(100.0)
+    results = solver.run(spec, scenarios, progress=False, starts=_at(spec, result.x))
     # A warm start can fail (λ starts at zero); those problems again from every start.
     again = [i for i, r in enumerate(results) if not r.converged]
     if again:
         starts = np.concatenate([_at(spec, result.x), solver.start_points(spec.structure)])
-        redone = solver.run(patient, [scenarios[i] for i in again], progress=False, starts=starts)
+        redone = solver.run(spec, [scenarios[i] for i in again], progress=False, starts=starts)
         for i, r in zip(again, redone, strict=True):
             results[i] = r
     out = {}
