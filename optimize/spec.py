@@ -366,7 +366,7 @@ GAF_MODELS = ("stroke", "printed", "forces")
 INTEGER_LIMITS = {
     "n_theta": (6, 3600, "a multiple of 6"),
     "starts": (1, 64, ""),
-    "max_outer": (1, 200, ""),  # MAX_OUTER_ITERATIONS
+    "max_outer": (1, 200, ""),  # its upper limit sizes the solve's history (MAX_OUTER_ITERATIONS)
     "inner_steps": (1, 200, ""),
 }
 # A solve evaluates the revolution's n_theta angles for each start max_outer · inner_steps times
