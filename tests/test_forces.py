@@ -487,3 +487,15 @@ def test_layout_fields_broadcast_against_the_angles():
         alone = forces.roller_forces(Layout(R[i], 500.0, CASE_N.gamma0), THETA[i], inputs)
         np.testing.assert_allclose(together.normal[i], alone.normal, rtol=1e-13)
         np.testing.assert_allclose(together.moment[i], alone.moment, rtol=1e-13, atol=1e-12)
+
+
+def test_inside_a_users_jit_equals_the_top_level_call():
+    """The top-level calls of forces_halfshaft and gaf_halfshaft are compiled for latency (their
+    own compiler options); inside a user's jax.jit the same numbers come from the caller's
+    program (JAX takes compiler options on a top-level program only)."""
+    inputs = forces.ForceInputs(500.0)
+    for quantity in (
+        lambda layout: forces.forces_halfshaft(layout, inputs, n_theta=120).gaf_third_order,
+        lambda layout: friction.gaf_halfshaft(layout, 500.0, n_theta=120).rms,
+    ):
+        assert float(jax.jit(quantity)(CASE_N)) == pytest.approx(float(quantity(CASE_N)), rel=1e-13)

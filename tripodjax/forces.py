@@ -69,6 +69,7 @@ from tripodjax._checks import (
     check_real,
     checked_pytree_dataclass,
 )
+from tripodjax._compile import latency_bound_at_top_level
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.friction import DEFAULT_STROKE_WIDTH, GREASE_A, FrictionParams
 from tripodjax.halfshaft import HalfshaftSolution, half_angle_sincos, solve_halfshaft
@@ -706,7 +707,7 @@ def forces_halfshaft(
     return _forces_halfshaft(layout, inputs, n_theta=n_theta, solver=solvers.resolve(solver))
 
 
-@functools.partial(jax.jit, static_argnames=("n_theta", "solver"))
+@functools.partial(latency_bound_at_top_level, static_argnames=("n_theta", "solver"))
 def _forces_halfshaft(layout, inputs, *, n_theta, solver):
     sol, rates = revolution(layout, n_theta, solver, with_rates=True)
     return forces_from_revolution(layout, sol, rates, inputs)

@@ -45,6 +45,7 @@ from tripodjax._checks import (
     check_positive,
     checked_pytree_dataclass,
 )
+from tripodjax._compile import latency_bound_at_top_level
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.halfshaft import HalfshaftSolution
 from tripodjax.kinematics import _check_n_theta, revolution
@@ -512,7 +513,7 @@ def gaf_halfshaft(
     )
 
 
-@functools.partial(jax.jit, static_argnames=("n_theta", "solver"))
+@functools.partial(latency_bound_at_top_level, static_argnames=("n_theta", "solver"))
 def _gaf_halfshaft(layout, inputs, *, n_theta, solver):
     sol, rates = revolution(layout, n_theta, solver, with_rates=True)
     return gaf_from_revolution(layout, sol, rates, inputs)
