@@ -6,6 +6,8 @@ import sys
 
 
 def test_bench_writes_its_figures(tmp_path):
+    # notebooks/04_speed_accuracy.ipynb's sizes: its programs in the run's compilation cache
+    # (the notebooks run first), the cost table small.
     out = tmp_path / "bench.json"
     result = subprocess.run(
         [
@@ -13,13 +15,17 @@ def test_bench_writes_its_figures(tmp_path):
             "-m",
             "tripodjax.bench",
             "--layouts",
-            "60",
+            "3000",
             "--fsolve-layouts",
-            "1",
+            "3",
             "--repeats",
-            "1",
+            "2",
+            "--gradient-layouts",
+            "500",
             "--domain-layouts",
-            "64",
+            "500",
+            "--cost-layouts",
+            "60",
             "--cost-outputs",
             "delta_pp,result,gaf_rms",
             "--json",
@@ -60,6 +66,7 @@ def test_bench_writes_its_figures(tmp_path):
     assert limit["newton_loop_iterations"] == limit["polynomial_iterations"]
     assert limit["exact_iterations"] == 0 and limit["transcendentals_per_solved_angle"] == 0
     assert limit["steps_per_solved_angle"] == limit["polynomial_iterations"] + 1
+    assert figures["gradient_to_forward"]["layouts"] == 500  # --gradient-layouts
     costs = figures["output_costs"]
     for level in ("newton", "analytic", "closed_form"):
         assert costs[level]["default"] > 0

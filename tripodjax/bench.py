@@ -877,6 +877,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--repeats", type=int, default=3, help="timed repeats, best kept (default 3)"
     )
     parser.add_argument(
+        "--gradient-layouts",
+        type=int,
+        default=2000,
+        help="layouts of the gradient-to-forward cost ratio (default 2000)",
+    )
+    parser.add_argument(
         "--domain-layouts",
         type=int,
         default=2000,
@@ -914,7 +920,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         "jax_enable_x64", True
     )  # the command's own choice: float64 variants and reference
     results = run(
-        args.layouts, args.n_theta, args.fsolve_layouts, args.repeats, domain_n=args.domain_layouts
+        args.layouts,
+        args.n_theta,
+        args.fsolve_layouts,
+        args.repeats,
+        gradient_layouts=args.gradient_layouts,
+        domain_n=args.domain_layouts,
     )
     cost_layouts = args.layouts if args.cost_layouts is None else args.cost_layouts
     if cost_layouts:
