@@ -4,6 +4,8 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 
 def test_bench_writes_its_figures(tmp_path):
     # notebooks/04_speed_accuracy.ipynb's sizes: its programs in the run's compilation cache
@@ -118,3 +120,39 @@ def test_latency_table_of_one_entry(tmp_path):
     assert "_evaluate_chunk" in program["name"] and program["kb"] > 0 and program["ops"] > 0
     assert sum(p["compile_s"] for p in entry["programs"]) <= entry["compile_s"] + 1e-6
     assert "compile latency" in result.stdout and figures["measured_on"]["cpu"] in result.stdout
+
+
+@pytest.mark.parametrize(
+    "argv, says",
+    [
+        (["--layouts", "-5"], "argument --layouts: '-5' is not allowed; allowed: an integer ≥ 1"),
+        (["--layouts", "2.5"], "argument --layouts: '2.5' is not allowed"),
+        (["--n-theta", "100"], "allowed: an integer ≥ 6, a multiple of 6"),
+        (["--repeats", "0"], "argument --repeats: '0' is not allowed"),
+        (["--gradient-layouts", "0"], "argument --gradient-layouts: '0' is not allowed"),
+        (["--cost-layouts", "-1"], "allowed: an integer ≥ 0"),
+        (
+            ["--cost-outputs", "delta_pp,foo"],
+            "argument --cost-outputs: foo unknown; allowed: delta_pp,",
+        ),
+        (["--latency", "--repeats", "0"], "argument --repeats: '0' is not allowed"),
+        (
+            ["--latency", "--entries", "solve,foo"],
+            "argument --entries: foo unknown; allowed: readme,",
+        ),
+        (
+            ["--latency", "--gradient-layouts", "1,x"],
+            "argument --gradient-layouts: 'x' is not allowed",
+        ),
+    ],
+)
+def test_bad_arguments_exit_2_with_one_line(argv, says, capsys):
+    """A bad argument stops the bench before anything is measured: exit status 2 and one line
+    naming the argument, the value and what is allowed (no usage block, no traceback)."""
+    from tripodjax import bench
+
+    with pytest.raises(SystemExit) as stopped:
+        bench.main(argv)
+    assert stopped.value.code == 2
+    err = capsys.readouterr().err
+    assert says in err and err.count("\n") == 1 and err.endswith("(see --help)\n")

@@ -844,6 +844,47 @@ def latency_report(results: dict[str, Any], programs: int = 4) -> str:
     return "\n".join(lines)
 
 
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> Any:  # one line, no usage block
+        self.exit(2, f"{self.prog}: {message} (see --help)\n")
+
+
+def _names(parser: argparse.ArgumentParser, flag: str, text: str | None, allowed: Sequence[str]):
+    """The comma-separated names of ``flag`` (None where not given); an unknown one is the
+    parser's one-line error."""
+    if not text:
+        return None
+    names = text.split(",")
+    unknown = [name for name in names if name not in allowed]
+    if unknown:
+        parser.error(
+            f"argument {flag}: {', '.join(unknown)} unknown; allowed: {', '.join(allowed)}"
+        )
+    return names
+
+
+def _count(minimum: int, multiple: int = 1) -> Any:
+    """An argparse type: an integer ≥ ``minimum`` (and a multiple of ``multiple``), else the
+    parser's one-line error naming the value and what is allowed."""
+    rule = f"an integer ≥ {minimum}" + (f", a multiple of {multiple}" if multiple > 1 else "")
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < minimum or value % multiple:
+            raise argparse.ArgumentTypeError(f"{text!r} is not allowed; allowed: {rule}")
+        return value
+
+    return parse
+
+
+def _counts(text: str) -> list[int]:
+    """An argparse type: comma-separated integers ≥ 1 (empty: none)."""
+    return [_count(1)(part) for part in text.split(",") if part]
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     if argv is None:
         argv = sys.argv[1:]
@@ -858,39 +899,37 @@ def main(argv: Sequence[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 2
-    parser = argparse.ArgumentParser(
-        prog="python -m tripodjax.bench", description=__doc__.split("\n\n")[0]
+    parser = _Parser(prog="python -m tripodjax.bench", description=__doc__.split("\n\n")[0])
+    parser.add_argument(
+        "--layouts", type=_count(1), default=20000, help="layouts per variant (default 20000)"
     )
     parser.add_argument(
-        "--layouts", type=int, default=20000, help="layouts per variant (default 20000)"
-    )
-    parser.add_argument(
-        "--n-theta", type=int, default=360, help="angles per revolution (default 360)"
+        "--n-theta", type=_count(6, 6), default=360, help="angles per revolution (default 360)"
     )
     parser.add_argument(
         "--fsolve-layouts",
-        type=int,
+        type=_count(1),
         default=20,
         help="layouts in the fsolve subsample (default 20)",
     )
     parser.add_argument(
-        "--repeats", type=int, default=3, help="timed repeats, best kept (default 3)"
+        "--repeats", type=_count(1), default=3, help="timed repeats, best kept (default 3)"
     )
     parser.add_argument(
         "--gradient-layouts",
-        type=int,
+        type=_count(1),
         default=2000,
         help="layouts of the gradient-to-forward cost ratio (default 2000)",
     )
     parser.add_argument(
         "--domain-layouts",
-        type=int,
+        type=_count(1),
         default=2000,
         help="layouts of the whole-domain accuracy check (default 2000)",
     )
     parser.add_argument(
         "--cost-layouts",
-        type=int,
+        type=_count(0),
         default=None,
         metavar="N",
         help="layouts of the per-output cost table (default: --layouts; 0 skips it)",
@@ -903,7 +942,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument(
         "--memory",
-        type=int,
+        type=_count(0),
         default=0,
         metavar="N",
         help="also measure the peak memory a sweep of N layouts adds",
@@ -914,6 +953,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="where to write the figures (default tripodjax-bench.json)",
     )
     args = parser.parse_args(argv)
+    from tripodjax.sweep import OUTPUTS
+
+    cost_outputs = _names(parser, "--cost-outputs", args.cost_outputs, OUTPUTS)
     import jax
 
     jax.config.update(
@@ -929,8 +971,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     cost_layouts = args.layouts if args.cost_layouts is None else args.cost_layouts
     if cost_layouts:
-        names = args.cost_outputs.split(",") if args.cost_outputs else None
-        results["output_costs"] = output_costs(cost_layouts, args.n_theta, args.repeats, names)
+        results["output_costs"] = output_costs(
+            cost_layouts, args.n_theta, args.repeats, cost_outputs
+        )
     if args.memory:
         results["memory"] = memory_of_sweep(args.memory, args.n_theta)
     print(report(results))
@@ -943,12 +986,14 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def latency_main(argv: Sequence[str]) -> int:
     """``python -m tripodjax.bench --latency``: the compile-latency table (see `latency`)."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="python -m tripodjax.bench --latency",
         description="trace, compile and run time of each first answer, in fresh processes",
     )
     parser.add_argument("--latency", action="store_true", required=True)
-    parser.add_argument("--repeats", type=int, default=3, help="fresh runs per entry (median)")
+    parser.add_argument(
+        "--repeats", type=_count(1), default=3, help="fresh runs per entry (median)"
+    )
     parser.add_argument(
         "--entries",
         default=None,
@@ -959,7 +1004,8 @@ def latency_main(argv: Sequence[str]) -> int:
     )
     parser.add_argument(
         "--gradient-layouts",
-        default="1,2000",
+        type=_counts,
+        default=[1, 2000],
         metavar="NS",
         help="batch sizes of the gradient/forward ratio (default 1,2000; empty skips it)",
     )
@@ -967,10 +1013,10 @@ def latency_main(argv: Sequence[str]) -> int:
         "--json", default="tripodjax-latency.json", help="where to write the figures"
     )
     args = parser.parse_args(argv)
-    names = args.entries.split(",") if args.entries else None
+    names = _names(parser, "--entries", args.entries, [entry[0] for entry in LATENCY_ENTRIES])
     results = latency(args.repeats, names)
     print(latency_report(results))
-    sizes = [int(n) for n in args.gradient_layouts.split(",") if n]
+    sizes = args.gradient_layouts
     if sizes:
         import jax
 
