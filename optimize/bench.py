@@ -28,7 +28,6 @@ first solve of each structure and the command cold and warm) is ``python -m trip
 Needs SciPy (the ``bench`` extra: ``pip install "tripodjax[bench]"``).
 """
 
-import argparse
 import json
 import os
 import subprocess
@@ -36,6 +35,7 @@ import sys
 import tempfile
 import time
 
+from tripodjax._cli import ArgumentParser
 from tripodjax.bench import COMMAND_FLOOR
 
 FIDELITY_SETTINGS = (
@@ -389,7 +389,7 @@ def optimize_default_structure():
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog="python -m tripodjax.optimize.bench", description=__doc__.split("\n")[0]
     )
     parser.add_argument(

@@ -16,7 +16,6 @@ signal is handled at once, not after a compilation ends; the main thread stages 
 report and leaves on a signal only when no staged file remains in ``--out``.
 """
 
-import argparse
 import contextlib
 import gc
 import os
@@ -25,6 +24,8 @@ import sys
 import tempfile
 import threading
 import warnings
+
+from tripodjax._cli import ArgumentParser
 
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT, EXIT_WRITE_FAILED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 EXIT_TERMINATED = 143  # 128 + SIGTERM
@@ -107,13 +108,8 @@ def _in_worker(function, *args):
 # --------------------------------------------------------------------------- arguments
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # one line, no usage block
-        self.exit(EXIT_BAD_INPUT, f"{self.prog}: {message} (see --help)\n")
-
-
 def _parse(argv):
-    parser = _Parser(
+    parser = ArgumentParser(
         prog="optimize-joint",
         description=(
             "Propose a tripod joint design (any of R, d, l, γ0, conformity, λ, μ_slp free, as the "

@@ -6,12 +6,12 @@ differ. Exit status: 0 written; 2 a folder without a readable report.json (or on
 optimize-joint did not write), or bad arguments; 3 the page could not be written.
 """
 
-import argparse
 import json
 import os
 import sys
 import tempfile
 
+from tripodjax._cli import ArgumentParser
 from tripodjax.optimize.document import NotAvailable, cell, fmt, version_note
 
 EXIT_OK, EXIT_BAD_INPUT, EXIT_WRITE_FAILED = 0, 2, 3
@@ -22,11 +22,6 @@ REQUIRED = {"design": dict, "converged": bool, "constraints": dict}
 # zero up to the solve (an active constraint's margin is of the order of the solver's tolerance)
 # and the relative change is noise: the page gives the change B − A alone.
 NEAR_ZERO = 1e-3
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # one line, no usage block
-        self.exit(EXIT_BAD_INPUT, f"{self.prog}: {message} (see --help)\n")
 
 
 def load(folder):
@@ -171,7 +166,7 @@ def write_page(path, text):
 
 
 def main(argv=None):
-    parser = _Parser(
+    parser = ArgumentParser(
         prog="optimize-joint compare",
         description=(
             "Set two optimize-joint reports side by side: designs, objectives, each requirement's "

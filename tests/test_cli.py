@@ -29,3 +29,16 @@ def test_bad_layout_exits_2_with_a_one_line_message():
     lines = result.stderr.strip().splitlines()
     # The message names the command's own option (--gamma0, in degrees), not the Layout field.
     assert len(lines) == 1 and "--gamma0 = 60.0" in lines[0] and "45°" in lines[0]
+
+
+def test_an_argument_argparse_rejects_is_one_line_too():
+    """A value of the wrong type or an unknown choice: argparse's message in one line (no usage
+    block), exit status 2, as for every command (tripodjax._cli.ArgumentParser)."""
+    for args, says in (
+        (("--l", "abc"), "argument --l: invalid float value: 'abc'"),
+        (("--solver", "fast"), "argument --solver: invalid choice: 'fast'"),
+    ):
+        result = run(*args)
+        assert result.returncode == 2
+        assert result.stderr.startswith(f"python -m tripodjax: {says}")
+        assert result.stderr.count("\n") == 1 and result.stderr.endswith("(see --help)\n")

@@ -1,12 +1,13 @@
 """``python -m tripodjax``: kinematics report of a halfshaft layout (default: the seed's case N)."""
 
-import argparse
 import math
 import sys
 
+from tripodjax._cli import ArgumentParser
+
 
 def _parse(argv):
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog="python -m tripodjax",
         description="Kinematics report of a tripod-joint halfshaft (float64).",
     )

@@ -36,6 +36,8 @@ from typing import Any
 
 import numpy as np
 
+from tripodjax._cli import ArgumentParser
+
 COMPARED = ("delta_pp", "irregularity", "gamma_pp", "ecc_max")
 SOLVERS = ("newton", "analytic", "closed_form")
 
@@ -844,11 +846,6 @@ def latency_report(results: dict[str, Any], programs: int = 4) -> str:
     return "\n".join(lines)
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> Any:  # one line, no usage block
-        self.exit(2, f"{self.prog}: {message} (see --help)\n")
-
-
 def _names(parser: argparse.ArgumentParser, flag: str, text: str | None, allowed: Sequence[str]):
     """The comma-separated names of ``flag`` (None where not given); an unknown one is the
     parser's one-line error."""
@@ -899,7 +896,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 2
-    parser = _Parser(prog="python -m tripodjax.bench", description=__doc__.split("\n\n")[0])
+    parser = ArgumentParser(prog="python -m tripodjax.bench", description=__doc__.split("\n\n")[0])
     parser.add_argument(
         "--layouts", type=_count(1), default=20000, help="layouts per variant (default 20000)"
     )
@@ -986,7 +983,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def latency_main(argv: Sequence[str]) -> int:
     """``python -m tripodjax.bench --latency``: the compile-latency table (see `latency`)."""
-    parser = _Parser(
+    parser = ArgumentParser(
         prog="python -m tripodjax.bench --latency",
         description="trace, compile and run time of each first answer, in fresh processes",
     )
