@@ -28,15 +28,16 @@ first solve of each structure and the command cold and warm) is ``python -m trip
 Needs SciPy (the ``bench`` extra: ``pip install "tripodjax[bench]"``).
 """
 
-import json
 import os
 import subprocess
 import sys
 import tempfile
 import time
 
-from tripodjax._cli import ArgumentParser
+from tripodjax._cli import ArgumentParser, output_file, write_json
 from tripodjax.bench import COMMAND_FLOOR
+
+PROG = "python -m tripodjax.optimize.bench"
 
 FIDELITY_SETTINGS = (
     ("newton", 360),
@@ -389,13 +390,13 @@ def optimize_default_structure():
 
 
 def main(argv=None):
-    parser = ArgumentParser(
-        prog="python -m tripodjax.optimize.bench", description=__doc__.split("\n")[0]
-    )
+    parser = ArgumentParser(prog=PROG, description=__doc__.split("\n")[0])
     parser.add_argument(
         "--skip-command", action="store_true", help="skip the cold/warm command timings"
     )
-    parser.add_argument("--json", metavar="FILE", help="also write the figures as JSON")
+    parser.add_argument(
+        "--json", metavar="FILE", type=output_file, help="also write the figures as JSON"
+    )
     parser.add_argument(
         "--reliability-only",
         action="store_true",
@@ -483,8 +484,8 @@ def _write(path, figures):
         from tripodjax.bench import measured_on
 
         figures["measured_on"] = measured_on()
-        with open(path, "w", encoding="utf-8") as f:
-            json.dump(figures, f, indent=2)
+        if not write_json(PROG, path, figures):
+            sys.exit(1)
 
 
 if __name__ == "__main__":

@@ -9,9 +9,8 @@ optimize-joint did not write), or bad arguments; 3 the page could not be written
 import json
 import os
 import sys
-import tempfile
 
-from tripodjax._cli import ArgumentParser
+from tripodjax._cli import ArgumentParser, write_text
 from tripodjax.optimize.document import NotAvailable, cell, fmt, version_note
 
 EXIT_OK, EXIT_BAD_INPUT, EXIT_WRITE_FAILED = 0, 2, 3
@@ -149,22 +148,6 @@ def render(a, b, name_a="A", name_b="B"):
     )
 
 
-def write_page(path, text):
-    """Write ``text`` to ``path`` atomically (a temporary file renamed into place)."""
-    folder = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".compare.", dir=folder)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-
-
 def main(argv=None):
     parser = ArgumentParser(
         prog="optimize-joint compare",
@@ -192,7 +175,7 @@ def main(argv=None):
         print(f"optimize-joint compare: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
     try:
-        write_page(args.out, render(a, b, args.dir_a, args.dir_b))
+        write_text(args.out, render(a, b, args.dir_a, args.dir_b))
     except OSError as error:
         print(
             f"optimize-joint compare: cannot write {args.out}: {error.strerror or error}",

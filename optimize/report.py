@@ -10,11 +10,13 @@ switch): importing this module changes nothing in the process.
 """
 
 import dataclasses
+import errno
 import io
 import json
 import math
 import os
 import platform
+import shutil
 import tempfile
 
 import numpy as np
@@ -653,12 +655,49 @@ def write(out_dir, report, figures, documents=None, *, with_json=True):
             fd, tmp = stage("report.json")
             with os.fdopen(fd, "w", encoding="utf-8") as f:
                 json.dump(report, f, indent=2, ensure_ascii=False, allow_nan=False)
-        while staged:
-            tmp, name = staged[0]
+        for tmp, _ in staged:
             os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600 files
-            os.replace(tmp, os.path.join(out_dir, name))
-            staged.pop(0)
+        _commit(out_dir, staged)
     finally:
         for tmp, _ in staged:  # whatever was not renamed into place
             if os.path.exists(tmp):
                 os.remove(tmp)
+
+
+def _commit(out_dir, staged):
+    """Rename every staged ``(temporary, name)`` into place, all or none: where one rename fails,
+    the files already renamed are put back as they were (an older file restored from its
+    hard link, a new name removed) and the error is raised. ``staged`` is emptied as its files
+    are renamed, so that what is left in it is the caller's to remove."""
+    kept, placed = [], []  # (path, link to the older file or None); the paths renamed into place
+    try:
+        for _, name in staged:
+            path = os.path.join(out_dir, name)
+            if os.path.lexists(path) and not os.path.isfile(path):
+                raise IsADirectoryError(errno.EISDIR, f"{name} there is not a file", path)
+            older = None
+            if os.path.lexists(path):
+                older = os.path.join(out_dir, f".{name}.{os.getpid()}.older")
+                try:  # the older file stays in place until it is replaced
+                    os.link(path, older, follow_symlinks=False)
+                except OSError:  # a file system without hard links
+                    shutil.copy2(path, older, follow_symlinks=False)
+            kept.append((path, older))
+        while staged:
+            tmp, name = staged[0]
+            path = os.path.join(out_dir, name)
+            os.replace(tmp, path)
+            placed.append(path)
+            staged.pop(0)
+    except BaseException:
+        for path, older in kept:
+            if path in placed:
+                if older is None:
+                    os.remove(path)
+                else:
+                    os.replace(older, path)
+        raise
+    finally:
+        for _, older in kept:
+            if older is not None and os.path.lexists(older):
+                os.remove(older)

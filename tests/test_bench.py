@@ -144,6 +144,13 @@ def test_latency_table_of_one_entry(tmp_path):
             ["--latency", "--gradient-layouts", "1,x"],
             "argument --gradient-layouts: 'x' is not allowed",
         ),
+        (
+            ["--json", "/nonexistent/folder/x.json"],
+            "argument --json: '/nonexistent/folder/x.json' is not allowed (the folder "
+            "/nonexistent/folder does not exist)",
+        ),
+        (["--json", "."], "argument --json: '.' is not allowed (it is a folder)"),
+        (["--latency", "--json", ""], "argument --json: '' is not allowed (it is empty)"),
     ],
 )
 def test_bad_arguments_exit_2_with_one_line(argv, says, capsys):
@@ -156,3 +163,27 @@ def test_bad_arguments_exit_2_with_one_line(argv, says, capsys):
     assert stopped.value.code == 2
     err = capsys.readouterr().err
     assert says in err and err.count("\n") == 1 and err.endswith("(see --help)\n")
+
+
+def test_the_optimiser_bench_checks_its_json_file_first(capsys):
+    from tripodjax.optimize import bench
+
+    with pytest.raises(SystemExit) as stopped:
+        bench.main(["--json", "/nonexistent/folder/x.json"])
+    assert stopped.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "the folder /nonexistent/folder does not exist" in err
+
+
+def test_figures_that_cannot_be_written_are_one_line_and_leave_nothing(tmp_path, capsys):
+    from tripodjax._cli import write_json
+
+    folder = tmp_path / "figures"
+    folder.mkdir()
+    assert write_json("bench", str(folder / "a.json"), {"x": 1.5})
+    assert json.loads((folder / "a.json").read_text()) == {"x": 1.5}
+    (folder / "b.json").mkdir()  # in the way
+    assert not write_json("bench", str(folder / "b.json"), {"x": 1.5})
+    err = capsys.readouterr().err
+    assert err.startswith("bench: cannot write ") and err.count("\n") == 1
+    assert sorted(p.name for p in folder.iterdir()) == ["a.json", "b.json"]  # no temporary file

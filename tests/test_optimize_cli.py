@@ -354,6 +354,50 @@ def test_cli_report_write_failure_exits_3_and_prints_the_design(tmp_path):
     assert not any(p.name.startswith(".") for p in out.iterdir())  # no temporary files left
 
 
+def _older_report(out):
+    out.mkdir()
+    for name in ("a.png", "report.json"):
+        (out / name).write_text(f"older {name}")
+
+
+def test_a_report_that_cannot_be_written_leaves_every_older_file_as_it_was(tmp_path):
+    from matplotlib.figure import Figure
+
+    from tripodjax.optimize import report
+
+    out = tmp_path / "out"
+    _older_report(out)
+    (out / "b.png").mkdir()  # in the way of the second figure: found before anything is renamed
+    with pytest.raises(IsADirectoryError, match="b.png"):
+        report.write(out, {"new": 1}, {"a.png": Figure(), "b.png": Figure()})
+    assert sorted(p.name for p in out.iterdir()) == ["a.png", "b.png", "report.json"]
+    assert (out / "a.png").read_text() == "older a.png"
+    assert (out / "report.json").read_text() == "older report.json"
+
+
+def test_a_rename_that_fails_puts_back_the_files_renamed_before_it(tmp_path, monkeypatch):
+    from matplotlib.figure import Figure
+
+    from tripodjax.optimize import report
+
+    out = tmp_path / "out"
+    _older_report(out)
+    replace = os.replace
+
+    def failing(source, target):  # the second figure's rename fails (a full disk, say)
+        if os.path.basename(str(target)) == "b.png" and ".b.png." in str(source):
+            raise OSError(28, "No space left on device")
+        replace(source, target)
+
+    monkeypatch.setattr(report.os, "replace", failing)
+    with pytest.raises(OSError, match="No space"):
+        report.write(out, {"new": 1}, {"a.png": Figure(), "b.png": Figure(), "c.png": Figure()})
+    # a.png was renamed into place, then put back; b.png and c.png never appear
+    assert sorted(p.name for p in out.iterdir()) == ["a.png", "report.json"]
+    assert (out / "a.png").read_text() == "older a.png"
+    assert (out / "report.json").read_text() == "older report.json"
+
+
 def _swap_entries(executables, names=None):
     """Swap the contents of the two largest entries (valid executables under wrong keys), of
     those ``names`` where given."""

@@ -6,6 +6,10 @@ A bad argument is one line naming it, its value and what is allowed, and exit st
 """
 
 import argparse
+import json
+import os
+import sys
+import tempfile
 
 EXIT_BAD_INPUT = 2
 
@@ -15,3 +19,48 @@ class ArgumentParser(argparse.ArgumentParser):
 
     def error(self, message):  # one line, no usage block
         self.exit(EXIT_BAD_INPUT, f"{self.prog}: {message} (see --help)\n")
+
+
+def output_file(text):
+    """An argparse type: a file to write, in a folder that exists and can be written to; else
+    the parser's one-line error, before anything is computed."""
+    folder = os.path.dirname(os.path.abspath(text)) if text else ""
+    if not text or os.path.isdir(text):
+        problem = "it is a folder" if text else "it is empty"
+    elif not os.path.isdir(folder):
+        problem = f"the folder {folder} does not exist"
+    elif not os.access(folder, os.W_OK | os.X_OK):
+        problem = f"the folder {folder} cannot be written to"
+    else:
+        return text
+    raise argparse.ArgumentTypeError(
+        f"{text!r} is not allowed ({problem}); allowed: a file in a folder that can be written to"
+    )
+
+
+def write_text(path, text):
+    """Write ``text`` to ``path`` atomically (a temporary file renamed into place); OSError if it
+    cannot be written, and then nothing is left."""
+    folder = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(path)}.", dir=folder)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600 files
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+def write_json(prog, path, figures):
+    """A bench's ``figures`` as JSON in ``path`` (``write_text``); a failure is one line on
+    stderr and False."""
+    try:
+        write_text(path, json.dumps(figures, indent=2))
+    except OSError as error:
+        print(f"{prog}: cannot write {path}: {error.strerror or error}", file=sys.stderr)
+        return False
+    return True

@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from tripodjax._cli import ArgumentParser
+from tripodjax._cli import ArgumentParser, output_file, write_json
 
 COMPARED = ("delta_pp", "irregularity", "gamma_pp", "ecc_max")
 SOLVERS = ("newton", "analytic", "closed_form")
@@ -946,6 +946,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument(
         "--json",
+        type=output_file,
         default="tripodjax-bench.json",
         help="where to write the figures (default tripodjax-bench.json)",
     )
@@ -975,8 +976,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         results["memory"] = memory_of_sweep(args.memory, args.n_theta)
     print(report(results))
     results["measured_on"] = measured_on()
-    with open(args.json, "w") as f:
-        json.dump(results, f, indent=2)
+    if not write_json(parser.prog, args.json, results):
+        return 1
     print(f"figures written to {args.json}")
     return 0
 
@@ -1007,7 +1008,10 @@ def latency_main(argv: Sequence[str]) -> int:
         help="batch sizes of the gradient/forward ratio (default 1,2000; empty skips it)",
     )
     parser.add_argument(
-        "--json", default="tripodjax-latency.json", help="where to write the figures"
+        "--json",
+        type=output_file,
+        default="tripodjax-latency.json",
+        help="where to write the figures (default tripodjax-latency.json)",
     )
     args = parser.parse_args(argv)
     names = _names(parser, "--entries", args.entries, [entry[0] for entry in LATENCY_ENTRIES])
@@ -1029,8 +1033,8 @@ def latency_main(argv: Sequence[str]) -> int:
                     f"float64, {n} layouts: {g['ratio']:.2f}"
                 )
     results["measured_on"] = measured_on()  # the load average as the figures are written
-    with open(args.json, "w") as f:
-        json.dump(results, f, indent=2)
+    if not write_json(parser.prog, args.json, results):
+        return 1
     print(f"figures written to {args.json}")
     return 0
 
