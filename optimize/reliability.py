@@ -43,6 +43,7 @@ from jax.scipy.special import log_ndtr, ndtr
 from tripodjax.optimize import uncertainty
 from tripodjax.optimize._compiled import call, latency_bound_jit
 from tripodjax.optimize.problem import (
+    check_spec,
     constraint_names,
     design_values,
     fixed_design,
@@ -349,8 +350,7 @@ def _float(value):
 
 
 def _check(spec, design, method, samples, is_samples, chunk, seed):
-    if not isinstance(spec, Spec):
-        raise TypeError(f"spec = {spec!r} must be a tripodjax.optimize.Spec (optimize.load_spec)")
+    check_spec(spec)
     if not spec.structure.uncertainty:
         raise ValueError(
             "the spec has no [uncertainty] entry: give distributions on its numbers "
@@ -525,6 +525,7 @@ def with_default_tolerances(spec: Spec) -> Spec:
     """The spec with ``uncertainty.DEFAULT_TOLERANCES_TOML`` as its [uncertainty] section."""
     import tomllib
 
+    check_spec(spec)
     return spec.replace_values(**tomllib.loads(uncertainty.DEFAULT_TOLERANCES_TOML))
 
 
@@ -532,6 +533,7 @@ def report_reliability(spec: Spec, design: Mapping[str, float], default_toleranc
     """The report's reliability section at a design (FORM, SORM and a 10⁵-sample Monte Carlo
     check, importance sampling below 1e-3), or None when the spec has no [uncertainty] and
     ``default_tolerances`` is off (then the default tolerances apply)."""
+    check_spec(spec)
     source = "spec"
     if not spec.structure.uncertainty:
         if not default_tolerances:

@@ -37,7 +37,7 @@ import jax
 import numpy as np
 
 from tripodjax.optimize._compiled import call, latency_bound_jit
-from tripodjax.optimize.problem import bounds, check_result, constraint_names
+from tripodjax.optimize.problem import bounds, check_result, check_spec, constraint_names
 from tripodjax.optimize.solver import Result, _evaluation, evaluate_points
 from tripodjax.optimize.spec import VARIABLES, Spec, shaft_variable
 
@@ -137,7 +137,7 @@ def compile_reverse_pass(spec: Spec) -> None:
     needs (if any) once, at the middle of the box: its compiled program (its shapes are any
     design's) is then ready for the optimum's (``optimize-joint`` compiles it beside the solve).
     """
-    structure, values = spec.structure, spec.values
+    structure, values = check_spec(spec).structure, spec.values
     inputs = _inputs(structure, values)
     reversed_keys = _reversed_keys(inputs)
     if reversed_keys:

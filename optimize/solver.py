@@ -42,6 +42,7 @@ from tripodjax._checks import check_layout_domain
 from tripodjax.optimize._compiled import batch_rows, call, latency_bound_jit
 from tripodjax.optimize.problem import (
     bounds,
+    check_spec,
     constraint_names,
     fixed_design,
     limits,
@@ -624,6 +625,7 @@ def solve(
         >>> round(result.design["R"], 1), round(result.design["d_roller"], 1), result.converged
         (26.1, 41.4, True)
     """
+    check_spec(spec)
     result = run(spec, [spec.values], progress)[0]
     if sensitivities and result.converged:
         from tripodjax.optimize.sensitivity import sensitivities as derivatives
@@ -654,6 +656,7 @@ def solve_family(
     must be fixed in the spec (not in ``[bounds]``). Returns a list of
     [`Result`][tripodjax.optimize.Result], one per member.
     """
+    check_spec(spec)
     if (gamma0_deg is None) == (l is None):
         raise ValueError("solve_family needs exactly one of gamma0_deg=[...] or l=[...]")
     name = "gamma0_deg" if gamma0_deg is not None else "l"
@@ -689,6 +692,7 @@ def pareto_front(
     diameter trace the front of GAF against joint size. The spec's objective must have
     a ``gaf_rms`` term.
     """
+    check_spec(spec)
     if "gaf_rms" not in spec.structure.objective:
         raise ValueError(
             "pareto_front sweeps objective.w_gaf_rms; the spec's objective has no gaf_rms term"

@@ -371,12 +371,36 @@ BOUNDARY = {
         {name: "non_negative" for name in friction.FrictionParams.__dataclass_fields__},
         "FrictionParams.{}",
     ),
+    "friction.mu_sta": (
+        friction.mu_sta,
+        dict(gamma=0.3, torque=100.0),
+        {"gamma": "working_angle", "torque": "non_negative", "params": "object"},
+        "{}",
+    ),
+    "friction.mu_avg": (
+        friction.mu_avg,
+        dict(theta=0.3, gamma=0.3, torque=100.0),
+        {"theta": "finite", "gamma": "working_angle", "torque": "non_negative", "params": "object"},
+        "{}",
+    ),
+    "friction.mu_slip_to_roll": (
+        friction.mu_slip_to_roll,
+        dict(gamma=0.3),
+        {"gamma": "working_angle", "params": "object"},
+        "{}",
+    ),
+    "friction.mu_dyn": (
+        friction.mu_dyn,
+        dict(theta=0.3, gamma=0.3, stroke="in"),
+        {"theta": "finite", "gamma": "working_angle", "params": "object", "stroke": "choice"},
+        "{}",
+    ),
     "friction.gaf": (
         friction.gaf,
         dict(theta=0.3, gamma=0.3, torque=100.0, R=25.0, model="printed", width=0.01),
         {
             "theta": "finite",
-            "gamma": "finite",
+            "gamma": "working_angle",
             "torque": "non_negative",
             "R": "positive",
             "model": "choice",

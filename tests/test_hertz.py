@@ -331,3 +331,27 @@ def test_capacity_law_calibrated_on_one_catalogue_size_predicts_the_others():
     k = ref["M_d"] / (ref["d"] ** 2 * ref["R"])
     errors = [k * s["d"] ** 2 * s["R"] / s["M_d"] - 1 for s in catalogue.GE.values()]
     assert max(abs(e) for e in errors) < 0.1
+
+
+def test_arguments_whose_shapes_do_not_broadcast_are_named():
+    d, R = np.array([40.0, 41.0, 42.0]), np.array([25.0, 26.0])
+    calls = (
+        lambda: hertz.capacities(
+            d, R, conformity=1.002, P_s=2350.0, P_d=1347.0, P_sd=2005.0, C_s=1.2
+        ),
+        lambda: hertz.torque_at_pressure(1347.0, d, R, C_p=514.6, C_s=1.2),
+        lambda: hertz.roller_contact(np.ones(2) * 1e4, d, conformity=1.002),
+        lambda: hertz.min_roller_diameter(
+            np.array([900.0, 1000.0]), R_over_d=d / 60.0, conformity=1.002, P_s=2350.0, C_s=1.2
+        ),
+    )
+    for call in calls:
+        with pytest.raises(
+            ValueError, match=r"^the arguments have shapes \w+ \(\d,\), \w+ \(\d,\)"
+        ):
+            call()
+    # shapes that broadcast keep working: one capacity per (d, R) pair
+    pairs = hertz.capacities(
+        d[:2], R, conformity=1.002, P_s=2350.0, P_d=1347.0, P_sd=2005.0, C_s=1.2
+    )
+    assert np.shape(pairs.M_s) == (2,)

@@ -9,7 +9,16 @@ import numpy as np
 import pytest
 import reference
 
-from tripodjax import TABLE_2_1, Layout, kinematic_metrics, kinematics, seed_case, sweep
+from tripodjax import (
+    TABLE_2_1,
+    Layout,
+    forces,
+    friction,
+    kinematic_metrics,
+    kinematics,
+    seed_case,
+    sweep,
+)
 from tripodjax._compile import latency_bound_jit
 from tripodjax.bench import domain_layouts
 from tripodjax.kinematics import FROM_SERIES, metrics_and_window, metrics_from, revolution
@@ -398,3 +407,33 @@ def _at_gamma0(gamma0, solver):
     layout = Layout(40.0, 500.0, gamma0)
     sol, rates = revolution(layout, 60, solver, with_rates=True)
     return layout, sol, rates, ("irregularity",)
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda lay: kinematic_metrics(lay, 36),
+        lambda lay: friction.gaf_halfshaft(lay, 100.0, n_theta=36),
+        lambda lay: forces.forces_halfshaft(lay, forces.ForceInputs(100.0), 36),
+    ],
+    ids=["kinematic_metrics", "gaf_halfshaft", "forces_halfshaft"],
+)
+def test_a_batch_where_one_layout_is_asked_for_is_one_line_saying_what_to_do(call):
+    batch = Layout(R=np.array([25.0, 26.0]), l=500.0, gamma0=0.3)
+    with pytest.raises(ValueError) as info:
+        call(batch)
+    message = str(info.value)
+    assert message.startswith("layout has fields of shapes R (2,), l (), gamma0 ()")
+    assert "jax.vmap" in message and "sweep" in message and "\n" not in message
+    # one layout at a time under jax.vmap is the way
+    one = jax.vmap(lambda R: kinematic_metrics(Layout(R, 500.0, 0.3), 36).irregularity)
+    assert np.all(np.isfinite(one(jnp.asarray([25.0, 26.0]))))
+
+
+def test_n_theta_may_be_a_numpy_integer():
+    case = seed_case("N")
+    plain = kinematic_metrics(case, 36)
+    assert float(kinematic_metrics(case, np.int64(36)).irregularity) == float(plain.irregularity)
+    for bad in (np.float64(36.0), True, 37, np.int32(0)):
+        with pytest.raises(ValueError, match="n_theta = .* is not allowed"):
+            kinematic_metrics(case, bad)

@@ -447,3 +447,11 @@ def test_a_first_call_compiles_one_program_not_each_operation(caplog):
             jax.block_until_ready(call())
         compiled = [r for r in caplog.records if "Finished XLA compilation" in r.getMessage()]
         assert len(compiled) <= 2, (name, [r.getMessage() for r in compiled])
+
+
+def test_a_spectrum_whose_lists_differ_in_length_is_named():
+    with pytest.raises(ValueError, match=r"torque \(3,\), speed \(2,\), share \(2,\)"):
+        life.life_hours(1500.0, [500.0, 800.0, 900.0], [1000.0, 2000.0], [0.5, 0.5])
+    # M_d with leading axes: one life per entry, as documented
+    hours = life.life_hours(np.array([[1500.0], [1600.0]]), [500.0, 800.0], [1e3, 2e3], [0.5, 0.5])
+    assert np.shape(hours) == (2, 1) and float(hours[1, 0]) > float(hours[0, 0])

@@ -107,3 +107,26 @@ def test_exact_and_first_order_roller_accelerations_agree_to_first_order():
         axis=(0, 1)
     )
     np.testing.assert_allclose(exact[:2], approx[:2], rtol=0.03)
+
+
+@pytest.mark.parametrize("motion", [halfshaft_motion, first_order_motion])
+@pytest.mark.parametrize(
+    "layout, theta, says",
+    [
+        ((25.0, 500.0, 0.3), 0.1, "layout = (25.0, 500.0, 0.3) is not allowed; allowed: a Layout"),
+        ("batch", 0.1, "layout has fields of shapes R (2,)"),
+        ("N", "0", "theta = '0' is not allowed"),
+        ("N", np.zeros(3), "the fields have shapes theta (3,), theta_dot (2,)"),
+    ],
+)
+def test_bad_input_is_one_line_naming_the_argument(motion, layout, theta, says):
+    import tripodjax as tj
+
+    if layout == "N":
+        layout = seed_case("N")
+    elif layout == "batch":
+        layout = tj.Layout(np.array([25.0, 26.0]), 500.0, 0.3)
+    theta_dot = np.ones(2) if np.ndim(theta) else 100.0
+    with pytest.raises((TypeError, ValueError)) as info:
+        motion(layout, theta, theta_dot)
+    assert str(info.value).startswith(says) and "\n" not in str(info.value)

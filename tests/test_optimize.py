@@ -603,6 +603,24 @@ def test_replace_values_rejects_unknown_keys():
         SPEC.replace_values(load={"M_max": 1200.0})
 
 
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda spec: optimize.solve(spec, progress=False),
+        lambda spec: optimize.solve_family(spec, l=[500.0], progress=False),
+        lambda spec: optimize.pareto_front(spec, [1.0], progress=False),
+        lambda spec: optimize.reliability(spec, {"R": 25.0, "d_roller": 40.0}),
+    ],
+    ids=["solve", "solve_family", "pareto_front", "reliability"],
+)
+def test_a_spec_that_is_not_a_spec_is_one_line_naming_it(call):
+    with pytest.raises(TypeError) as info:
+        call({"design": {}})
+    message = str(info.value)
+    assert message.startswith("spec = {'design': {}} is not allowed; allowed: a Spec")
+    assert "load_spec()" in message and "\n" not in message
+
+
 def test_evaluate_bound_margins_are_exact_on_the_bound():
     spec = optimize.parse_spec("[bounds]\ngamma0_deg = [18.0, 25.0]")
     out = optimize.evaluate(spec, {"R": 21.0, "d_roller": 28.0, "gamma0_deg": 18.0})

@@ -261,6 +261,12 @@ def check_finite(name, value, unit=""):
     check(name, value, np.isfinite, f"{_short(name)} finite{unit}")
 
 
+def check_nonzero(name, value, unit="", why=""):
+    """A finite value, not 0 (a speed that must have a direction); ``why`` ends the message."""
+    allowed = f"{_short(name)} finite{unit}, not 0" + (f" ({why})" if why else "")
+    check(name, value, lambda a: np.isfinite(a) & (a != 0), allowed)
+
+
 def check_non_negative(name, value, unit=""):
     """A finite value ≥ 0 (``unit`` is appended to the allowed range, e.g. ``" N·m"``)."""
     check(name, value, lambda a: np.isfinite(a) & (a >= 0), f"{_short(name)} ≥ 0{unit} (finite)")
@@ -284,6 +290,18 @@ def check_range(
     if high < math.inf:
         parts.append(f" {'<' if high_open else '≤'} {high:g}")
     return check(name, value, ok, "".join(parts) + unit + " (finite)")
+
+
+def check_working_angle(name, value):
+    """A working (articulation) angle γ [rad]: finite, 0 ≤ γ < π/2. The one rule of every public
+    function that takes one (Hertz capacities, life, friction): γ = 20 (degrees given for
+    radians) is refused, not answered with a plausible number."""
+    return check(
+        name,
+        value,
+        lambda a: np.isfinite(a) & (a >= 0) & (a < math.pi / 2),
+        f"0 ≤ {_short(name)} < π/2 rad (finite)",
+    )
 
 
 def check_shares(name, share, axis=-1):
@@ -360,12 +378,23 @@ def check_shapes(shapes, prefix="", allowed="numbers, or arrays whose shapes bro
                 f"{prefix}{name} is empty (shape {tuple(shape)}); allowed: a number or a "
                 "non-empty array"
             )
+    return _broadcast(shapes, f"{prefix.rstrip('.') or 'the'} fields", allowed)
+
+
+def check_broadcast(**values):
+    """``ValueError`` unless the arguments ``{name: value}`` broadcast together, e.g.
+    ``"the arguments have shapes d (3,), R (2,); allowed: …"``; returns the broadcast shape."""
+    shapes = {name: np.shape(value) for name, value in values.items()}
+    arrays = {name: shape for name, shape in shapes.items() if shape}  # numbers fit any shape
+    return _broadcast(arrays, "the arguments", "numbers, or arrays whose shapes broadcast together")
+
+
+def _broadcast(shapes, owner, allowed):
     try:
         return np.broadcast_shapes(*shapes.values())
     except ValueError:
         listed = ", ".join(f"{name} {tuple(shape)}" for name, shape in shapes.items())
-        owner = prefix.rstrip(".") or "the"
-        raise ValueError(f"{owner} fields have shapes {listed}; allowed: {allowed}") from None
+        raise ValueError(f"{owner} have shapes {listed}; allowed: {allowed}") from None
 
 
 def check_devices(devices):

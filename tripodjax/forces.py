@@ -64,6 +64,7 @@ from tripodjax._checks import (
     check_finite,
     check_instance,
     check_non_negative,
+    check_nonzero,
     check_positive,
     check_range,
     check_real,
@@ -111,8 +112,8 @@ class ForceInputs:
         speed: θ̇ of the running case [rad/s], finite, not 0 (GAF, complementary
             torque, roller loads, friction power; only the power depends on its
             size, the forces on its sign).
-        plunge_speed: v_p of the LTS test [mm/s], finite: the spider pushed into
-            the pot (> 0, along +Z) or pulled out (< 0).
+        plunge_speed: v_p of the LTS test [mm/s], finite, not 0: the spider pushed
+            into the pot (> 0, along +Z) or pulled out (< 0).
         lts_speed: θ̇ during the LTS test [rad/s], finite (default 0: the joint
             held still under torque and stroked, the idle case; a speed gives
             the idle case between LTS and GAF).
@@ -142,14 +143,8 @@ class ForceInputs:
         check_instance("params", self.params, FrictionParams, "a FrictionParams, e.g. GREASE_A")
         check_non_negative("mu_trunnion", self.mu_trunnion)
         check_range("contact_angle", self.contact_angle, 0.0, MAX_CONTACT_ANGLE, high_open=True)
-        check_real("speed", self.speed)
-        check_finite("speed", self.speed, " rad/s, not 0")
-        if np.any(np.asarray(self.speed) == 0):
-            raise ValueError(
-                f"speed = {self.speed!r} is not allowed; allowed: speed finite rad/s, not 0 "
-                "(the running case needs a direction of rotation)"
-            )
-        check_finite("plunge_speed", self.plunge_speed, " mm/s")
+        check_nonzero("speed", self.speed, " rad/s", "the running case needs a direction")
+        check_nonzero("plunge_speed", self.plunge_speed, " mm/s", "the LTS opposes a plunge")
         check_finite("lts_speed", self.lts_speed, " rad/s")
         check_positive(width=self.width)
         check_finite("transverse_x", self.transverse_x, " N")
@@ -701,9 +696,9 @@ def forces_halfshaft(
     Returns a [`ForceResult`][tripodjax.forces.ForceResult]; differentiable w.r.t. the
     layout and every field of ``inputs``.
     """
-    check_layout(layout)
+    check_layout(layout, one=True)
     _check_inputs(inputs)
-    _check_n_theta(n_theta)
+    n_theta = _check_n_theta(n_theta)
     return _forces_halfshaft(layout, inputs, n_theta=n_theta, solver=solvers.resolve(solver))
 
 

@@ -43,6 +43,7 @@ from tripodjax._checks import (
     check_instance,
     check_non_negative,
     check_positive,
+    check_working_angle,
     checked_pytree_dataclass,
 )
 from tripodjax._compile import latency_bound_at_top_level
@@ -116,8 +117,24 @@ def _degrees(gamma):
     return gamma * (180.0 / math.pi)
 
 
+def _check_coefficient_inputs(params, **values):
+    """The friction coefficients' arguments (those given): θ finite, γ a working angle, T_d ≥ 0."""
+    if "theta" in values:
+        check_finite("theta", values["theta"], " [rad]")
+    check_working_angle("gamma", values["gamma"])
+    if "torque" in values:
+        check_non_negative("torque", values["torque"], " N·m")
+    _check_params(params)
+
+
 def mu_sta(gamma: ArrayLike, torque: ArrayLike, params: FrictionParams = GREASE_A) -> jax.Array:
-    """Static friction coefficient μ_sta [–] (3.2.9) at articulation γ [rad] and torque T_d [N·m]."""
+    """Static friction coefficient μ_sta [–] (3.2.9) at articulation γ [rad], 0 ≤ γ < π/2, and
+    torque T_d [N·m], ≥ 0."""
+    _check_coefficient_inputs(params, gamma=gamma, torque=torque)
+    return _mu_sta(gamma, torque, params)
+
+
+def _mu_sta(gamma, torque, params):
     g = _degrees(gamma)
     return params.C_s1 + (params.C_s2 + params.C_s3 * g) * (1.0 - jnp.exp(-params.C_s4 * torque))
 
@@ -125,9 +142,11 @@ def mu_sta(gamma: ArrayLike, torque: ArrayLike, params: FrictionParams = GREASE_
 def mu_avg(
     theta: ArrayLike, gamma: ArrayLike, torque: ArrayLike, params: FrictionParams = GREASE_A
 ) -> jax.Array:
-    """Mean friction coefficient of a roller at its angle θ [rad] (3.2.10)."""
+    """Mean friction coefficient of a roller at its angle θ [rad] (3.2.10); γ [rad] and T_d
+    [N·m] as [`mu_sta`][tripodjax.friction.mu_sta]."""
+    _check_coefficient_inputs(params, theta=theta, gamma=gamma, torque=torque)
     g = _degrees(gamma)
-    static = mu_sta(gamma, torque, params)
+    static = _mu_sta(gamma, torque, params)
     return (
         static * (1.0 + (params.C_s5 * params.mu_slp - params.C_s6) * g)
         + params.C_s7 * params.mu_slp
@@ -137,7 +156,13 @@ def mu_avg(
 
 
 def mu_slip_to_roll(gamma: ArrayLike, params: FrictionParams = GREASE_A) -> ArrayLike:
-    """Combined sliding–rolling coefficient μ_S/R = R_s γ μ_slp + (1 − R_s γ) λ (3.2.12), γ in rad."""
+    """Combined sliding–rolling coefficient μ_S/R = R_s γ μ_slp + (1 − R_s γ) λ (3.2.12), γ in
+    rad, 0 ≤ γ < π/2."""
+    _check_coefficient_inputs(params, gamma=gamma)
+    return _mu_slip_to_roll(gamma, params)
+
+
+def _mu_slip_to_roll(gamma, params):
     slip = params.R_s * gamma
     return slip * params.mu_slp + (1.0 - slip) * params.lam
 
@@ -145,13 +170,19 @@ def mu_slip_to_roll(gamma: ArrayLike, params: FrictionParams = GREASE_A) -> Arra
 def mu_dyn(
     theta: ArrayLike, gamma: ArrayLike, params: FrictionParams = GREASE_A, stroke: str = "in"
 ) -> jax.Array:
-    """Dynamic friction coefficient (3.2.11) for the inward (+) or outward (−) stroke."""
+    """Dynamic friction coefficient (3.2.11) at roller angle θ [rad] and articulation γ [rad],
+    0 ≤ γ < π/2, for the inward (+) or outward (−) stroke."""
     check_choice("stroke", stroke, STROKES)
+    _check_coefficient_inputs(params, theta=theta, gamma=gamma)
+    return _mu_dyn(theta, gamma, params, stroke)
+
+
+def _mu_dyn(theta, gamma, params, stroke):
     sign = 1.0 if stroke == "in" else -1.0
     g = _degrees(gamma)
     return sign * (
         g / 15.0 * (params.C_d1 * params.mu_slp - params.C_d2) * jnp.abs(jnp.sin(theta))
-        + mu_slip_to_roll(gamma, params)
+        + _mu_slip_to_roll(gamma, params)
     )
 
 
@@ -226,7 +257,7 @@ def _gaf_force(theta_i, gamma, stroke_rate_i, torque, R, params, model, width, f
     A non-finite R or width (inside jit, where nothing is checked) gives NaN,
     not the 0 that 1/R → 0 or tanh(s/width) → 0 would make of it.
     """
-    magnitude = jnp.abs(mu_dyn(theta_i, gamma[..., None], params, "in"))
+    magnitude = jnp.abs(_mu_dyn(theta_i, gamma[..., None], params, "in"))
     mu_gaf = _stroke_weight(theta_i, stroke_rate_i, model, width) * magnitude
     force = _load_per_roller(torque, R, factor) * jnp.sum(mu_gaf, axis=-1)
     finite = jnp.isfinite(R) & jnp.isfinite(width)
@@ -270,7 +301,7 @@ def _stroke_sum(sol, rates, R, l, gamma0, params, width):
     _, a = jax.jvp(zero_sum, (sol.psi, sol.gamma), (rates.psi, rates.gamma))
     _, c = jax.jvp(common, (sol.psi, sol.delta_gamma), (rates.psi, rates.delta_gamma))
     gamma = sol.gamma[..., None]
-    m0 = mu_slip_to_roll(gamma, params)
+    m0 = _mu_slip_to_roll(gamma, params)
     d = _degrees(gamma) / 15.0 * (params.C_d1 * params.mu_slp - params.C_d2)
     u = jnp.abs(cos_rollers(sol.psi))  # |sin θ_i| with θ_i = ψ_i + 90°
     inner = m0 + d * u  # μ_dyn of the inward stroke (3.2.11)
@@ -321,7 +352,7 @@ def gaf(
     Args:
         theta: angle of roller 1 in the Lee model's convention [rad]; the
             others are at θ + 120° and θ + 240°.
-        gamma: articulation angle [rad] (constant: the single joint).
+        gamma: articulation angle [rad], 0 ≤ γ < π/2 (constant: the single joint).
         torque: joint torque T_d [N·m], ≥ 0.
         R: track pitch-circle radius [mm], > 0.
         params: [`FrictionParams`][tripodjax.friction.FrictionParams].
@@ -342,7 +373,7 @@ def gaf(
     Differentiable w.r.t. γ, torque, R and every FrictionParams field.
     """
     check_finite("theta", theta, " [rad]")
-    check_finite("gamma", gamma, " [rad]")
+    check_working_angle("gamma", gamma)
     _check_load(torque, R)
     _check_params(params)
     _check_model(model, width, factor)
@@ -502,12 +533,12 @@ def gaf_halfshaft(
     function theorem. ``factor``: ``"statics"`` (default) or ``"printed"``, see
     [`gaf`][tripodjax.friction.gaf].
     """
-    check_layout(layout)
+    check_layout(layout, one=True)
     _check_load(torque, layout.R)
     _check_params(params)
     _check_model(model, width, factor)
     solver = solvers.resolve_legacy(solver, fidelity)  # fidelity: the older spelling
-    _check_n_theta(n_theta)
+    n_theta = _check_n_theta(n_theta)
     return _gaf_halfshaft(
         layout, GAFInputs(torque, params, model, width, factor), n_theta=n_theta, solver=solver
     )

@@ -37,12 +37,14 @@ from jax.typing import ArrayLike
 
 from tripodjax._checks import (
     MIN_CONFORMITY,  # re-exported: hertz.MIN_CONFORMITY
+    check_broadcast,
     check_choice,
     check_conformity,
     check_integer,
     check_non_negative,
     check_positive,
     check_range,
+    check_working_angle,
 )
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.results import RESULTS, code_where, worst
@@ -386,6 +388,9 @@ def roller_contact(
     check_positive(d=d)
     check_conformity(conformity)
     _check_elastic(young_modulus, poisson)
+    check_broadcast(
+        load=load, d=d, conformity=conformity, young_modulus=young_modulus, poisson=poisson
+    )
     geometry = contact_geometry(conformity)
     coefficients = _hertz_coefficients(geometry.cos_tau)
     sum_rho = geometry.d_sum_rho / d
@@ -414,7 +419,7 @@ def _check_angles(pressure_angle, helix_angle, gamma=_NO_GAMMA):
     check_range("pressure_angle", pressure_angle, 0.0, math.pi / 2, low_open=True, unit=" rad")
     check_range("helix_angle", helix_angle, 0.0, math.pi / 2, high_open=True, unit=" rad")
     if gamma is not _NO_GAMMA:
-        check_range("gamma", gamma, 0.0, math.pi / 2, high_open=True, unit=" rad")
+        check_working_angle("gamma", gamma)
 
 
 def _torque_at_pressure(pressure, d, R, C_p, C_s, n_rollers, pressure_angle, helix_angle, gamma):
@@ -456,6 +461,16 @@ def torque_at_pressure(
     check_positive(d=d, R=R, C_p=C_p, C_s=C_s)
     _check_n_rollers(n_rollers)
     _check_angles(pressure_angle, helix_angle, gamma)
+    check_broadcast(
+        pressure=pressure,
+        d=d,
+        R=R,
+        C_p=C_p,
+        C_s=C_s,
+        pressure_angle=pressure_angle,
+        helix_angle=helix_angle,
+        gamma=gamma,
+    )
     return _torque_at_pressure(
         pressure, d, R, C_p, C_s, n_rollers, pressure_angle, helix_angle, gamma
     )
@@ -526,6 +541,7 @@ def capacities(
     _check_n_rollers(n_rollers)
     _check_angles(pressure_angle, helix_angle, gamma)
     _check_longitudinal(longitudinal_conformity)
+    check_broadcast(**arguments)
     return _capacities(**arguments)
 
 
@@ -601,6 +617,17 @@ def min_roller_diameter(
     check_conformity(conformity)
     _check_n_rollers(n_rollers)
     _check_angles(pressure_angle, helix_angle)
+    _check_longitudinal(longitudinal_conformity)
+    check_broadcast(
+        M_max=M_max,
+        R_over_d=R_over_d,
+        conformity=conformity,
+        P_s=P_s,
+        C_s=C_s,
+        pressure_angle=pressure_angle,
+        helix_angle=helix_angle,
+        longitudinal_conformity=longitudinal_conformity,
+    )
     C_p = _conformity_coefficient(conformity, longitudinal_conformity)[0]
     geometry_factor = n_rollers * R_over_d * jnp.sin(pressure_angle) * jnp.cos(helix_angle)
     torque_nmm = 1000.0 * M_max

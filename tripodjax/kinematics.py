@@ -17,6 +17,7 @@ gives.
 
 import contextlib
 import functools
+import numbers
 from collections.abc import Iterable
 
 import jax
@@ -95,12 +96,16 @@ class KinematicMetrics:
     result: jax.Array
 
 
-def _check_n_theta(n_theta):
-    if not isinstance(n_theta, int) or isinstance(n_theta, bool) or n_theta < 6 or n_theta % 6:
+def _check_n_theta(n_theta, name="n_theta"):
+    """The grid's angles per revolution as a Python int: an integer (NumPy's too), a positive
+    multiple of 6; else one ValueError naming ``name`` (a command names its option)."""
+    integer = isinstance(n_theta, numbers.Integral) and not isinstance(n_theta, (bool, np.bool_))
+    if not integer or n_theta < 6 or n_theta % 6:
         raise ValueError(
-            f"n_theta = {n_theta!r} is not allowed: it must be a positive multiple of 6 "
+            f"{name} = {n_theta!r} is not allowed: it must be a positive multiple of 6 "
             "(so the grid holds the accuracy points θ = kπ/3 where dψ/dθ peaks), e.g. 360"
         )
+    return int(n_theta)
 
 
 def period_grid(n_theta: int, dtype: DTypeLike) -> jax.Array:
@@ -110,7 +115,7 @@ def period_grid(n_theta: int, dtype: DTypeLike) -> jax.Array:
     is roller 1 at θ + (i − 1)·2π/3, so one period with all three rollers
     covers a whole revolution.
     """
-    _check_n_theta(n_theta)
+    n_theta = _check_n_theta(n_theta)
     n = n_theta // 3
     # Built in NumPy: a compile-time constant, so XLA folds the functions of θ alone.
     return jnp.asarray(np.arange(n) * (2.0 * np.pi / 3.0 / n), dtype)
@@ -522,9 +527,9 @@ def kinematic_metrics(
         at the extreme's angle, the first of them where several tie;
         ``max_residual`` and ``error_estimate`` are not differentiated (0).
     """
-    check_layout(layout)
+    check_layout(layout, one=True)
     solver = solvers.resolve_legacy(solver, fidelity)
-    _check_n_theta(n_theta)
+    n_theta = _check_n_theta(n_theta)
     metrics = _metrics_of_layout(layout, n_theta, solver)
     if throw:
         raise_failure_of_revolution(metrics.result, layout, n_theta, solver, "kinematic_metrics")

@@ -90,16 +90,30 @@ class Layout:
 
 
 def check_layout(
-    layout: object, name: str = "layout", allowed: str = "a Layout, e.g. Layout(25.0, 500.0, 0.35)"
+    layout: object,
+    name: str = "layout",
+    allowed: str = "a Layout, e.g. Layout(25.0, 500.0, 0.35)",
+    *,
+    one: bool = False,
 ) -> Layout:
     """``TypeError`` naming ``name`` unless ``layout`` is a [`Layout`][tripodjax.layout.Layout] (its fields were checked).
 
     The one type rule of every function that takes a layout
     ([`solve_halfshaft`][tripodjax.halfshaft.solve_halfshaft], [`kinematic_metrics`][tripodjax.kinematics.kinematic_metrics],
     [`gaf_halfshaft`][tripodjax.friction.gaf_halfshaft], [`sweep`][tripodjax.sweep.sweep]).
-    Returns ``layout``.
+    With ``one`` (a function of one layout over a revolution), ``ValueError`` unless every field
+    is a number (shape ()): a batch goes through ``jax.vmap`` or ``sweep``. Returns ``layout``.
     """
-    return check_instance(name, layout, Layout, allowed)
+    checked: Layout = check_instance(name, layout, Layout, allowed)
+    if one:
+        shapes = {field: np.shape(getattr(checked, field)) for field in ("R", "l", "gamma0")}
+        if any(shapes.values()):
+            listed = ", ".join(f"{field} {shape}" for field, shape in shapes.items())
+            raise ValueError(
+                f"{name} has fields of shapes {listed}; allowed: one layout (every field a "
+                "number): for a batch, jax.vmap over the layouts or tripodjax.sweep"
+            )
+    return checked
 
 
 # The seed's Table 2.1 cases (§2.10): code → (l [mm], R [mm], γ0 [deg]).

@@ -46,12 +46,13 @@ import numpy as np
 from jax.typing import ArrayLike
 
 from tripodjax._checks import (
-    check,
+    check_broadcast,
     check_choice,
     check_non_negative,
     check_positive,
     check_real,
     check_shares,
+    check_working_angle,
     checked_pytree_dataclass,
 )
 from tripodjax._pytree import pytree_dataclass
@@ -102,17 +103,8 @@ def angle_factor(gamma: ArrayLike, law: str = "workbook") -> jax.Array:
     module docstring); ``"seed"``: (½(1 + cos γ))³. γ in [0, π/2) rad, finite.
     """
     check_choice("law", law, ANGLE_LAWS)
-    _check_angle("gamma", gamma)
+    check_working_angle("gamma", gamma)
     return _angle_factor(jnp.asarray(gamma), law)
-
-
-def _check_angle(name, value):
-    check(
-        name,
-        value,
-        lambda a: np.isfinite(a) & (a >= 0) & (a < math.pi / 2),
-        "0 ≤ angle < π/2 rad (finite)",
-    )
 
 
 def _damage_rate(M_d, torque, speed, share):
@@ -145,6 +137,7 @@ def life_hours(M_d: ArrayLike, torque: ArrayLike, speed: ArrayLike, share: Array
     check_non_negative("torque", torque, " N·m")
     check_non_negative("speed", speed, " rpm")
     check_shares("share", share)
+    check_broadcast(torque=torque, speed=speed, share=share)  # the cases, on the last axis
     return _life_hours(M_d, torque, speed, share)
 
 
@@ -224,7 +217,7 @@ class WorkingConditions:
     share: ArrayLike
 
     def __post_init__(self) -> None:
-        _check_angle("WorkingConditions.angle", self.angle)
+        check_working_angle("WorkingConditions.angle", self.angle)
         check_real("WorkingConditions.share", self.share)
         _check_vectors("WorkingConditions", {"angle": self.angle, "share": self.share})
         check_shares("WorkingConditions.share", self.share)
@@ -383,7 +376,9 @@ def read_spectrum_rows(path: str | os.PathLike) -> dict[str, list[float]]:
                 (i, line) for i, line in enumerate(f, start=1) if not line.lstrip().startswith("#")
             ]
     except (OSError, UnicodeDecodeError) as error:
-        raise ValueError(f"cannot read spectrum file {path}: {error}") from None
+        raise ValueError(
+            f"cannot read spectrum file {path}: {getattr(error, 'strerror', None) or error}"
+        ) from None
     rows = [
         (i, row)
         for i, row in zip((i for i, _ in lines), csv.reader(line for _, line in lines), strict=True)

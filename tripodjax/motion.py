@@ -16,12 +16,14 @@ m/s²: divide by 1000).
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax.typing import ArrayLike
 
 from tripodjax import joint
+from tripodjax._checks import check_real, check_shapes
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.halfshaft import solve_halfshaft
-from tripodjax.layout import Layout
+from tripodjax.layout import Layout, check_layout
 
 
 @pytree_dataclass
@@ -79,7 +81,16 @@ def _prepare(
     return fields, rates
 
 
-@jax.jit
+def _check_motion(layout, theta, theta_dot, theta_ddot):
+    """One layout (scalar fields) and real θ, θ̇, θ̈ whose shapes broadcast together (a NaN
+    angle is answered with NaN, as by the solve)."""
+    check_layout(layout, one=True)
+    rates = {"theta": theta, "theta_dot": theta_dot, "theta_ddot": theta_ddot}
+    for name, value in rates.items():
+        check_real(name, value)
+    check_shapes({name: np.shape(value) for name, value in rates.items()})
+
+
 def halfshaft_motion(
     layout: Layout, theta: ArrayLike, theta_dot: ArrayLike, theta_ddot: ArrayLike = 0.0
 ) -> JointMotion:
@@ -93,6 +104,12 @@ def halfshaft_motion(
     Returns:
         [`JointMotion`][tripodjax.motion.JointMotion] in mm, mm/s, mm/s².
     """
+    _check_motion(layout, theta, theta_dot, theta_ddot)
+    return _halfshaft_motion(layout, theta, theta_dot, theta_ddot)
+
+
+@jax.jit
+def _halfshaft_motion(layout, theta, theta_dot, theta_ddot):
     (R, l, gamma0), (theta, theta_dot, theta_ddot) = _prepare(layout, theta, theta_dot, theta_ddot)
 
     def positions(t):
@@ -103,7 +120,6 @@ def halfshaft_motion(
     return _motion(positions, theta, theta_dot, theta_ddot)
 
 
-@jax.jit
 def first_order_motion(
     layout: Layout, theta: ArrayLike, theta_dot: ArrayLike, theta_ddot: ArrayLike = 0.0
 ) -> JointMotion:
@@ -113,6 +129,12 @@ def first_order_motion(
     spider offset c is constant (taken as 0), so the axial components are
     Z* − c and Z_i − c.
     """
+    _check_motion(layout, theta, theta_dot, theta_ddot)
+    return _first_order_motion(layout, theta, theta_dot, theta_ddot)
+
+
+@jax.jit
+def _first_order_motion(layout, theta, theta_dot, theta_ddot):
     (R, _, gamma0), (theta, theta_dot, theta_ddot) = _prepare(layout, theta, theta_dot, theta_ddot)
     gamma = jnp.broadcast_to(gamma0, theta.shape)
 

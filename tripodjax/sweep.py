@@ -459,7 +459,7 @@ def sweep(
     n = _check_layouts(layouts)
     solver = solvers.resolve(solver)
     outputs = _check_outputs(outputs, gaf, forces)
-    _check_n_theta(n_theta)
+    n_theta = _check_n_theta(n_theta)
     if gaf is not None:
         check_instance("gaf", gaf, GAFInputs, "a GAFInputs, e.g. tj.GAFInputs(torque=500.0)")
     if forces is not None:
