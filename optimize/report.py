@@ -360,6 +360,10 @@ def figure_tornado(result, count=12):
     return fig
 
 
+# Line styles of the constraint boundaries beyond the colour cycle's 10 colours.
+LINE_STYLES = ("solid", "dashed", "dotted", "dashdot")
+
+
 def figure_catalogue(result, catalogue, choice, landscape=None):
     """Catalogue sizes on the (R, d) plane over the constraint landscape, with the ad hoc optimum."""
     fig = _figure(figsize=(7, 6.5))
@@ -369,8 +373,18 @@ def figure_catalogue(result, catalogue, choice, landscape=None):
         worst = np.min(np.stack(list(landscape["margins"].values())), axis=0)
         ax.contourf(R, d, (worst < 0).T.astype(float), levels=[0.5, 1.5], colors="0.85")
         for k, (name, margin) in enumerate(landscape["margins"].items()):
-            ax.contour(R, d, margin.T, levels=[0.0], colors=f"C{k % 10}", linewidths=1.2)
-            ax.plot([], [], color=f"C{k % 10}", lw=1.2, label=f"{name} = 0")
+            # 10 colours, then the next 10 dashed, …: no two boundaries drawn alike
+            style = dict(color=f"C{k % 10}", linestyle=LINE_STYLES[k // 10 % len(LINE_STYLES)])
+            ax.contour(
+                R,
+                d,
+                margin.T,
+                levels=[0.0],
+                colors=style["color"],
+                linestyles=style["linestyle"],
+                linewidths=1.2,
+            )
+            ax.plot([], [], lw=1.2, label=f"{name} = 0", **style)
     for family, marker in (("GE", "s"), ("GI", "^")):
         for feasible, color in ((True, "C2"), (False, "C3")):
             pts = [e for e in catalogue if e["family"] == family and e["feasible"] == feasible]

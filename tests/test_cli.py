@@ -29,6 +29,8 @@ def test_bad_layout_exits_2_with_a_one_line_message():
     lines = result.stderr.strip().splitlines()
     # The message names the command's own option (--gamma0, in degrees), not the Layout field.
     assert len(lines) == 1 and "--gamma0 = 60.0" in lines[0] and "45°" in lines[0]
+    # the same prefix and ending as the parser's own argument errors
+    assert lines[0].startswith("python -m tripodjax: --gamma0") and lines[0].endswith("--help)")
 
 
 def test_an_argument_argparse_rejects_is_one_line_too():
@@ -37,6 +39,10 @@ def test_an_argument_argparse_rejects_is_one_line_too():
     for args, says in (
         (("--l", "abc"), "argument --l: invalid float value: 'abc'"),
         (("--solver", "fast"), "argument --solver: invalid choice: 'fast'"),
+        (
+            ("--n-theta", "100"),
+            "argument --n-theta: '100' is not allowed; allowed: an integer ≥ 6, a multiple of 6",
+        ),
     ):
         result = run(*args)
         assert result.returncode == 2

@@ -12,6 +12,7 @@ import tomllib
 import types
 from pathlib import Path
 
+import numpy as np
 import pytest
 from browser import Page, executable
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -831,3 +832,16 @@ def test_validation_prints_on_at_most_4_a4_pages_with_the_reports_verdicts(run, 
         }
         assert len(boxes) == 1 and next(iter(boxes)) == pytest.approx((0, 0, 595.3, 841.9), abs=1.5)
     (EXAMPLE / "validation.html").write_bytes(html.encode("utf-8"))
+
+
+def test_every_constraint_boundary_of_the_catalogue_figure_is_drawn_its_own_way():
+    """Beyond the colour cycle's 10 colours the boundaries change line style: each legend entry
+    of a landscape with 23 margins is a different (colour, line style)."""
+    R, d = np.linspace(20.0, 30.0, 5), np.linspace(30.0, 45.0, 6)
+    margins = {f"c{k}": np.add.outer(R - 20.0 - k / 3.0, 0.0 * d) for k in range(23)}
+    result = types.SimpleNamespace(design={"R": 25.0, "d_roller": 40.0})
+    fig = report.figure_catalogue(result, [], None, {"R": R, "d": d, "margins": margins})
+    lines = [h for h in fig.legends[0].legend_handles if h.get_label().endswith(" = 0")]
+    assert len(lines) == 23
+    styles = {(h.get_color(), h.get_linestyle()) for h in lines}
+    assert len(styles) == 23

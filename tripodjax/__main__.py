@@ -3,10 +3,10 @@
 import math
 import sys
 
-from tripodjax._cli import ArgumentParser
+from tripodjax._cli import ArgumentParser, count
 
 
-def _parse(argv):
+def _parser():
     parser = ArgumentParser(
         prog="python -m tripodjax",
         description="Kinematics report of a tripod-joint halfshaft (float64).",
@@ -19,7 +19,10 @@ def _parse(argv):
         "--gamma0", type=float, default=20.0, help="layout articulation angle [deg] (default 20)"
     )
     parser.add_argument(
-        "--n-theta", type=int, default=360, help="angles per revolution (default 360)"
+        "--n-theta",
+        type=count(6, 6),
+        default=360,
+        help="angles per revolution, a multiple of 6 (default 360)",
     )
     parser.add_argument(
         "--solver",
@@ -27,11 +30,12 @@ def _parse(argv):
         choices=("newton", "analytic", "closed_form"),
         help="solver level (default newton)",
     )
-    return parser.parse_args(argv)
+    return parser
 
 
 def main(argv=None):
-    args = _parse(argv)
+    parser = _parser()
+    args = parser.parse_args(argv)
     import jax
 
     jax.config.update(
@@ -52,9 +56,8 @@ def main(argv=None):
         )
         layout = tripodjax.Layout.from_degrees(args.R, args.l, args.gamma0)
         metrics = tripodjax.kinematic_metrics(layout, n_theta=args.n_theta, solver=args.solver)
-    except ValueError as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 2
+    except ValueError as error:  # the parser's one line, as for its own argument errors
+        parser.error(str(error))
     nominal = (args.R, args.l, args.gamma0) == (25.0, 500.0, 20.0)
     seed = {
         "delta_amp": "4.7e-3 rad (§2.11.3)",

@@ -21,6 +21,28 @@ class ArgumentParser(argparse.ArgumentParser):
         self.exit(EXIT_BAD_INPUT, f"{self.prog}: {message} (see --help)\n")
 
 
+def count(minimum, multiple=1):
+    """An argparse type: an integer ≥ ``minimum`` (and a multiple of ``multiple``), else the
+    parser's one-line error naming the value and what is allowed."""
+    rule = f"an integer ≥ {minimum}" + (f", a multiple of {multiple}" if multiple > 1 else "")
+
+    def parse(text):
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < minimum or value % multiple:
+            raise argparse.ArgumentTypeError(f"{text!r} is not allowed; allowed: {rule}")
+        return value
+
+    return parse
+
+
+def counts(text):
+    """An argparse type: comma-separated integers ≥ 1 (empty: none)."""
+    return [count(1)(part) for part in text.split(",") if part]
+
+
 def output_file(text):
     """An argparse type: a file to write, in a folder that exists and can be written to; else
     the parser's one-line error, before anything is computed."""

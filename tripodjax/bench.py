@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from tripodjax._cli import ArgumentParser, output_file, write_json
+from tripodjax._cli import ArgumentParser, count, counts, output_file, write_json
 
 COMPARED = ("delta_pp", "irregularity", "gamma_pp", "ecc_max")
 SOLVERS = ("newton", "analytic", "closed_form")
@@ -860,28 +860,6 @@ def _names(parser: argparse.ArgumentParser, flag: str, text: str | None, allowed
     return names
 
 
-def _count(minimum: int, multiple: int = 1) -> Any:
-    """An argparse type: an integer ≥ ``minimum`` (and a multiple of ``multiple``), else the
-    parser's one-line error naming the value and what is allowed."""
-    rule = f"an integer ≥ {minimum}" + (f", a multiple of {multiple}" if multiple > 1 else "")
-
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            value = None
-        if value is None or value < minimum or value % multiple:
-            raise argparse.ArgumentTypeError(f"{text!r} is not allowed; allowed: {rule}")
-        return value
-
-    return parse
-
-
-def _counts(text: str) -> list[int]:
-    """An argparse type: comma-separated integers ≥ 1 (empty: none)."""
-    return [_count(1)(part) for part in text.split(",") if part]
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     if argv is None:
         argv = sys.argv[1:]
@@ -898,35 +876,35 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     parser = ArgumentParser(prog="python -m tripodjax.bench", description=__doc__.split("\n\n")[0])
     parser.add_argument(
-        "--layouts", type=_count(1), default=20000, help="layouts per variant (default 20000)"
+        "--layouts", type=count(1), default=20000, help="layouts per variant (default 20000)"
     )
     parser.add_argument(
-        "--n-theta", type=_count(6, 6), default=360, help="angles per revolution (default 360)"
+        "--n-theta", type=count(6, 6), default=360, help="angles per revolution (default 360)"
     )
     parser.add_argument(
         "--fsolve-layouts",
-        type=_count(1),
+        type=count(1),
         default=20,
         help="layouts in the fsolve subsample (default 20)",
     )
     parser.add_argument(
-        "--repeats", type=_count(1), default=3, help="timed repeats, best kept (default 3)"
+        "--repeats", type=count(1), default=3, help="timed repeats, best kept (default 3)"
     )
     parser.add_argument(
         "--gradient-layouts",
-        type=_count(1),
+        type=count(1),
         default=2000,
         help="layouts of the gradient-to-forward cost ratio (default 2000)",
     )
     parser.add_argument(
         "--domain-layouts",
-        type=_count(1),
+        type=count(1),
         default=2000,
         help="layouts of the whole-domain accuracy check (default 2000)",
     )
     parser.add_argument(
         "--cost-layouts",
-        type=_count(0),
+        type=count(0),
         default=None,
         metavar="N",
         help="layouts of the per-output cost table (default: --layouts; 0 skips it)",
@@ -939,7 +917,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument(
         "--memory",
-        type=_count(0),
+        type=count(0),
         default=0,
         metavar="N",
         help="also measure the peak memory a sweep of N layouts adds",
@@ -989,9 +967,7 @@ def latency_main(argv: Sequence[str]) -> int:
         description="trace, compile and run time of each first answer, in fresh processes",
     )
     parser.add_argument("--latency", action="store_true", required=True)
-    parser.add_argument(
-        "--repeats", type=_count(1), default=3, help="fresh runs per entry (median)"
-    )
+    parser.add_argument("--repeats", type=count(1), default=3, help="fresh runs per entry (median)")
     parser.add_argument(
         "--entries",
         default=None,
@@ -1002,7 +978,7 @@ def latency_main(argv: Sequence[str]) -> int:
     )
     parser.add_argument(
         "--gradient-layouts",
-        type=_counts,
+        type=counts,
         default=[1, 2000],
         metavar="NS",
         help="batch sizes of the gradient/forward ratio (default 1,2000; empty skips it)",
