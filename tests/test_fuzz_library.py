@@ -25,7 +25,7 @@ from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
 import tripodjax as tj
-from tripodjax import catalogue, forces, friction, hertz, life, outboard, shaft
+from tripodjax import catalogue, forces, friction, hertz, joint, life, outboard, shaft
 
 FUZZ = settings(
     max_examples=25,
@@ -242,6 +242,24 @@ BOUNDARY = {
         None,  # R and l are named Layout.R, Layout.l
     ),
     "seed_case": (tj.seed_case, dict(code="N"), {"code": "choice"}, "{}"),
+    "joint.eccentricity": (
+        joint.eccentricity,
+        dict(R=25.0, gamma=0.3),
+        {"R": "positive", "gamma": "working_angle"},
+        "{}",
+    ),
+    "joint.spider_offset": (
+        joint.spider_offset,
+        dict(l=500.0, gamma0=0.3, gamma=0.31),
+        {"l": "positive", "gamma0": "working_angle", "gamma": "working_angle"},
+        "{}",
+    ),
+    "joint.roller_centres": (
+        joint.roller_centres,
+        dict(R=25.0, gamma=0.3, psi=np.linspace(0.0, 1.0, 4)),
+        {"R": "positive", "gamma": "working_angle"},
+        "{}",
+    ),
     "hertz.elliptic_integrals": (hertz.elliptic_integrals, dict(m=0.5), {"m": "unit"}, "{}"),
     "hertz.hertz_coefficients": (
         hertz.hertz_coefficients,

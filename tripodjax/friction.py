@@ -377,7 +377,7 @@ def gaf(
     _check_load(torque, R)
     _check_params(params)
     _check_model(model, width, factor)
-    theta_i = joint.roller_angles(jnp.asarray(theta, jnp.result_type(theta, gamma, 0.0)))
+    theta_i = joint._roller_angles(jnp.asarray(theta, jnp.result_type(theta, gamma, 0.0)))
     gamma = jnp.broadcast_to(jnp.asarray(gamma, theta_i.dtype), theta_i.shape[:-1])
     stroke_rate = jnp.tan(gamma)[..., None] * jnp.cos(theta_i)
     return _gaf_force(theta_i, gamma, stroke_rate, torque, R, params, model, width, factor)
@@ -488,7 +488,7 @@ def gaf_from_revolution(
     dtype = sol.theta.dtype
     R, l, gamma0 = (jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0))
     if model == "printed":
-        theta_lee = joint.roller_angles(sol.psi) + 0.5 * jnp.pi
+        theta_lee = joint._roller_angles(sol.psi) + 0.5 * jnp.pi
         force = _gaf_force(theta_lee, sol.gamma, None, torque, R, params, model, width, factor)
     else:
         total = _stroke_sum(sol, rates, R, l, gamma0, params, width)

@@ -2,7 +2,11 @@
 
 Pure functions of the joint size ``R`` [mm], the instantaneous articulation
 angle ``gamma`` [rad], the input (pot) angle ``theta`` [rad] and the output
-(spider) angle ``psi`` [rad]. Every function broadcasts over its arguments.
+(spider) angle ``psi`` [rad]. Every function broadcasts over its arguments. Concrete
+arguments are checked (``R``, ``l`` > 0; ``gamma``, ``gamma0`` working angles,
+0 ≤ γ < π/2; the angles θ, ψ, τ real numbers, a NaN answered with NaN), the error
+naming the argument; traced ones (inside ``jit``) are not. The library's own code calls the
+unchecked kernels (``_eccentricity``, …), which answer NaN with NaN.
 Roller quantities carry the roller index i = 1, 2, 3 on a trailing axis of
 length 3, with ``psi_i = psi + (i − 1)·2π/3``.
 """
@@ -11,11 +15,29 @@ import jax
 import jax.numpy as jnp
 from jax.typing import ArrayLike
 
+from tripodjax._checks import check_positive, check_real, check_working_angle
+
 ROLLER_OFFSETS = (0.0, 2.0 * jnp.pi / 3.0, 4.0 * jnp.pi / 3.0)
+
+
+def _check(**arguments):
+    """The joint's rules for each argument given, by its name (see the module)."""
+    for name, value in arguments.items():
+        if name in ("R", "l"):
+            check_positive(**{name: value})
+        elif name in ("gamma", "gamma0"):
+            check_working_angle(name, value)
+        else:  # an angle θ, ψ or τ
+            check_real(name, value)
 
 
 def roller_angles(psi: ArrayLike) -> jax.Array:
     """ψ_i = ψ + (i − 1)·2π/3 [rad] on a trailing axis of length 3 (2.4.7)."""
+    _check(psi=psi)
+    return _roller_angles(psi)
+
+
+def _roller_angles(psi):
     psi = jnp.asarray(psi)
     return psi[..., None] + jnp.asarray(ROLLER_OFFSETS, dtype=psi.dtype)
 
@@ -26,6 +48,11 @@ def direction_cosines(gamma: ArrayLike, tau: ArrayLike) -> jax.Array:
     Rows are X, Y, Z; columns are X', Y', Z' (entries l_j, m_j, n_j), so the
     last column is the spider axis Z' in the pot frame. Shape ``(..., 3, 3)``.
     """
+    _check(gamma=gamma, tau=tau)
+    return _direction_cosines(gamma, tau)
+
+
+def _direction_cosines(gamma, tau):
     gamma, tau = jnp.broadcast_arrays(gamma, tau)
     cg, sg, ct, st = jnp.cos(gamma), jnp.sin(gamma), jnp.cos(tau), jnp.sin(tau)
     zero = jnp.zeros_like(gamma)
@@ -43,6 +70,11 @@ def eccentricity(R: ArrayLike, gamma: ArrayLike) -> jax.Array:
     Evaluated as R sin²(γ/2)/cos γ, which keeps full relative accuracy at
     small γ (no cancellation in 1 − cos γ).
     """
+    _check(R=R, gamma=gamma)
+    return _eccentricity(R, gamma)
+
+
+def _eccentricity(R, gamma):
     R = jnp.asarray(R)
     return R * jnp.sin(0.5 * gamma) ** 2 / jnp.cos(gamma)
 
@@ -51,7 +83,12 @@ def eccentricity_components(
     R: ArrayLike, gamma: ArrayLike, psi: ArrayLike
 ) -> tuple[jax.Array, jax.Array]:
     """Eccentricity components (e_x, e_y) = e (cos 3ψ, sin 3ψ) [mm] (2.5.8)."""
-    e = eccentricity(R, gamma)
+    _check(R=R, gamma=gamma, psi=psi)
+    return _eccentricity_components(R, gamma, psi)
+
+
+def _eccentricity_components(R, gamma, psi):
+    e = _eccentricity(R, gamma)
     return e * jnp.cos(3.0 * psi), e * jnp.sin(3.0 * psi)
 
 
@@ -61,6 +98,11 @@ def spider_offset(l: ArrayLike, gamma0: ArrayLike, gamma: ArrayLike) -> jax.Arra
     The constant c0 is taken as 0: positions are measured from where the
     spider sits at θ = 0. Written as 2 l sin((γ+γ0)/2) sin((γ−γ0)/2).
     """
+    _check(l=l, gamma0=gamma0, gamma=gamma)
+    return _spider_offset(l, gamma0, gamma)
+
+
+def _spider_offset(l, gamma0, gamma):
     # Python-number arithmetic kept as it was; ArrayLike's bool member upsets the stubs.
     half_sum = 0.5 * (gamma + gamma0)
     half_diff = 0.5 * (gamma - gamma0)  # type: ignore[operator]
@@ -75,7 +117,12 @@ def spider_centre(
     a, b: 2.5.13 (fixed frame, X and Y); Z* − c = −e sin γ cos 3ψ (2.6.2,
     which fixes the sign of 2.5.15). Returns a tuple of three arrays.
     """
-    e = eccentricity(R, gamma)
+    _check(R=R, gamma=gamma, theta=theta, psi=psi)
+    return _spider_centre(R, gamma, theta, psi)
+
+
+def _spider_centre(R, gamma, theta, psi):
+    e = _eccentricity(R, gamma)
     delta = theta - psi  # type: ignore[operator]  # ArrayLike's bool member upsets the stubs
     s3, c3 = jnp.sin(3.0 * psi), jnp.cos(3.0 * psi)
     cg = jnp.cos(gamma)
@@ -94,8 +141,13 @@ def roller_centres(
     (2.6.3, an ellipse); Z_i − c = −(R/2) tan γ [2 cos ψ_i + (1 − cos γ) cos 3ψ]
     along the pot axis (2.6.2).
     """
+    _check(R=R, gamma=gamma, psi=psi)
+    return _roller_centres(R, gamma, psi)
+
+
+def _roller_centres(R, gamma, psi):
     R, gamma = jnp.asarray(R), jnp.asarray(gamma)[..., None]
-    psi_i = roller_angles(psi)
+    psi_i = _roller_angles(psi)
     c3 = jnp.cos(3.0 * jnp.asarray(psi))[..., None]
     x = -R / jnp.cos(gamma) * jnp.cos(psi_i)
     y = -R * jnp.sin(psi_i)
@@ -111,12 +163,22 @@ def roller_radial_distance(R: ArrayLike, gamma: ArrayLike, psi: ArrayLike) -> ja
     sin 3x / sin x = 1 + 2 cos 2x, the stable form is
     |r_i| = R + e (1 + 2 cos 2ψ_i), which ranges over R − e … R + 3e.
     """
-    e = eccentricity(R, gamma)[..., None]
+    _check(R=R, gamma=gamma, psi=psi)
+    return _roller_radial_distance(R, gamma, psi)
+
+
+def _roller_radial_distance(R, gamma, psi):
+    e = _eccentricity(R, gamma)[..., None]
     R = jnp.asarray(R)
-    return R + e * (1.0 + 2.0 * jnp.cos(2.0 * roller_angles(psi)))
+    return R + e * (1.0 + 2.0 * jnp.cos(2.0 * _roller_angles(psi)))
 
 
 def roller_path_semi_axes(R: ArrayLike, gamma: ArrayLike) -> tuple[jax.Array, jax.Array]:
     """Semi-axes (R / cos γ, R) [mm] of the elliptical roller-centre path (2.6.3)."""
+    _check(R=R, gamma=gamma)
+    return _roller_path_semi_axes(R, gamma)
+
+
+def _roller_path_semi_axes(R, gamma):
     R = jnp.asarray(R)
     return R / jnp.cos(gamma), R * jnp.ones_like(gamma)

@@ -344,14 +344,14 @@ class _Revolution:
     @functools.cached_property
     def spider(self):
         s = self.sol
-        return joint.spider_centre(self.R, s.gamma, s.theta, s.psi)
+        return joint._spider_centre(self.R, s.gamma, s.theta, s.psi)
 
     @functools.cached_property
     def roller_radial_excess(self):
         """|r_i| − R = e (1 + 2 cos 2ψ_i) [mm], without the large R."""
         s = self.sol
-        e = joint.eccentricity(self.R, s.gamma)[..., None]
-        return e * (1.0 + 2.0 * jnp.cos(2.0 * joint.roller_angles(s.psi)))
+        e = joint._eccentricity(self.R, s.gamma)[..., None]
+        return e * (1.0 + 2.0 * jnp.cos(2.0 * joint._roller_angles(s.psi)))
 
     def delta_pp(self):
         if self.sol.series is not None:  # Δ odd: ptp = 2 max |Δ| over the half period
@@ -401,7 +401,7 @@ class _Revolution:
             * jnp.cos(g0)
             / sinc_g0
         )
-        psi_i = joint.roller_angles(s.psi)
+        psi_i = joint._roller_angles(s.psi)
         bracket = (
             2.0 * jnp.cos(psi_i)
             + 2.0 * (jnp.sin(0.5 * gamma) ** 2 * jnp.cos(3.0 * s.psi))[..., None]
@@ -416,7 +416,7 @@ _METRICS = {
     "gamma_pp": _Revolution.gamma_pp,
     "gamma_max": lambda r: r.gamma0 + r.delta_gamma_max(),
     # e(γ) grows with γ on 0 ≤ γ < π/2: its largest value is e at the largest γ.
-    "ecc_max": lambda r: joint.eccentricity(r.R, r.gamma0 + r.delta_gamma_max()),
+    "ecc_max": lambda r: joint._eccentricity(r.R, r.gamma0 + r.delta_gamma_max()),
     "roller_stroke": lambda r: r.ptp(r.roller_radial_excess),
     "roller_radial_max": lambda r: r.R + r.extreme(r.roller_radial_excess, "max"),
     "roller_axial_stroke": _Revolution.roller_axial_stroke,

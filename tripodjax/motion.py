@@ -49,9 +49,9 @@ class JointMotion:
 
 def _positions(R, theta, gamma, psi, offset):
     """Spider (…, 3) and roller (…, 3, 3) positions for given ψ, γ and spider offset c."""
-    a, b, z_rel = joint.spider_centre(R, gamma, theta, psi)
+    a, b, z_rel = joint._spider_centre(R, gamma, theta, psi)
     spider = jnp.stack([a, b, offset + z_rel], axis=-1)
-    x, y, z_i = joint.roller_centres(R, gamma, psi)
+    x, y, z_i = joint._roller_centres(R, gamma, psi)
     rollers = jnp.stack([x, y, offset[..., None] + z_i], axis=-1)
     return spider, rollers
 
@@ -114,7 +114,7 @@ def _halfshaft_motion(layout, theta, theta_dot, theta_ddot):
 
     def positions(t):
         sol = solve_halfshaft(layout, t)
-        offset = joint.spider_offset(l, gamma0, sol.gamma)
+        offset = joint._spider_offset(l, gamma0, sol.gamma)
         return _positions(R, t, sol.gamma, sol.psi, offset)
 
     return _motion(positions, theta, theta_dot, theta_ddot)
