@@ -103,9 +103,8 @@ def spider_offset(l: ArrayLike, gamma0: ArrayLike, gamma: ArrayLike) -> jax.Arra
 
 
 def _spider_offset(l, gamma0, gamma):
-    # Python-number arithmetic kept as it was; ArrayLike's bool member upsets the stubs.
     half_sum = 0.5 * (gamma + gamma0)
-    half_diff = 0.5 * (gamma - gamma0)  # type: ignore[operator]
+    half_diff = 0.5 * (gamma - gamma0)
     return 2.0 * jnp.asarray(l) * jnp.sin(half_sum) * jnp.sin(half_diff)
 
 
@@ -123,7 +122,7 @@ def spider_centre(
 
 def _spider_centre(R, gamma, theta, psi):
     e = _eccentricity(R, gamma)
-    delta = theta - psi  # type: ignore[operator]  # ArrayLike's bool member upsets the stubs
+    delta = theta - psi
     s3, c3 = jnp.sin(3.0 * psi), jnp.cos(3.0 * psi)
     cg = jnp.cos(gamma)
     a = e * (s3 * jnp.sin(delta) - cg * c3 * jnp.cos(delta))
