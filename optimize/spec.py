@@ -13,6 +13,7 @@ with one line naming the key, the value and what is allowed.
 
 import copy
 import dataclasses
+import json
 import math
 import os
 import sys
@@ -604,12 +605,22 @@ def _given(given, base):
     return _sources(_legacy(_bounded_text(given)), base)
 
 
-def _real(where, value):
-    """A real number as a float, or SpecError (wrong type, beyond the float range)."""
+def _toml(value):
+    """A value as the spec file writes it (``true``, ``"text"``), for a message."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)
+    return repr(value)
+
+
+def _real(where, value, allowed="a finite number"):
+    """A real number as a float, or SpecError naming ``allowed`` (wrong type, beyond the float
+    range)."""
     try:
         return real_scalar(where, value)
     except TypeError:
-        raise SpecError(f"{where} = {value!r} must be a number") from None
+        raise SpecError(f"{where} = {_toml(value)} is not allowed: {allowed}") from None
     except ValueError as error:
         raise SpecError(str(error)) from None
 
@@ -618,7 +629,17 @@ def _number(table, section, key, low=None, high=None, *, low_open=False, high_op
     """A finite number in [low, high] (low excluded when low_open, high when high_open)."""
     where = f"{section}.{key}"
     value = table[section][key]
-    return _in_range(where, _real(where, value), low, high, low_open, unit, high_open)
+    allowed = _range_text(low, high, low_open, unit, high_open)
+    return _in_range(where, _real(where, value, allowed), low, high, low_open, unit, high_open)
+
+
+def _range_text(low, high, low_open, unit, high_open=False):
+    parts = []
+    if low is not None:
+        parts.append(f"{'>' if low_open else '≥'} {low:g}{unit}")
+    if high is not None:
+        parts.append(f"{'<' if high_open else '≤'} {high:g}{unit}")
+    return "a finite number " + " and ".join(parts) if parts else "a finite number"
 
 
 def _in_range(where, value, low, high, low_open, unit, high_open=False):
@@ -626,12 +647,7 @@ def _in_range(where, value, low, high, low_open, unit, high_open=False):
     ok = ok and (low is None or (value > low if low_open else value >= low))
     ok = ok and (high is None or (value < high if high_open else value <= high))
     if not ok:
-        parts = []
-        if low is not None:
-            parts.append(f"{'>' if low_open else '≥'} {low:g}{unit}")
-        if high is not None:
-            parts.append(f"{'<' if high_open else '≤'} {high:g}{unit}")
-        allowed = "a finite number " + " and ".join(parts) if parts else "a finite number"
+        allowed = _range_text(low, high, low_open, unit, high_open)
         raise SpecError(f"{where} = {value!r} is not allowed: {allowed}")
     return value
 
@@ -647,8 +663,11 @@ def _numbers(table, section, key, low=None, high=None, *, low_open=False, unit="
         raise SpecError(f"{where} = {values!r} must be a non-empty list of numbers")
     if len(values) > MAX_LIST_LENGTH:
         raise SpecError(f"{where} has {len(values)} entries; at most {MAX_LIST_LENGTH} allowed")
+    allowed = _range_text(low, high, low_open, unit)
     return [
-        _in_range(f"{where}[{i}]", _real(f"{where}[{i}]", value), low, high, low_open, unit)
+        _in_range(
+            f"{where}[{i}]", _real(f"{where}[{i}]", value, allowed), low, high, low_open, unit
+        )
         for i, value in enumerate(values)
     ]
 

@@ -291,7 +291,7 @@ LISTS = (
         ),
         ("[vehicle]\nengine_torque_Nm = [0.0, 0.0, 0.0, 0.0]", "the life would be infinite"),
         ("[life.conditions]\nnames = 5", "life.conditions.names = 5 must be a list of strings"),
-        ('[loads]\nM_max = "big"', "loads.M_max = 'big' must be a number"),
+        ('[loads]\nM_max = "big"', 'loads.M_max = "big" is not allowed: a finite number > 0 N·m'),
         ("[solver]\nn_theta = 100", "solver.n_theta = 100 is not allowed"),
         ("[solver]\nn_theta = 9999996", "from 6 to 3600"),
         ("[solver]\nstarts = 1e20", "solver.starts"),

@@ -336,6 +336,7 @@ def _unchecked(R, l, gamma0):
         ),
         (lambda: layouts(2), {"outputs": ("irregularity", "gaf_rms")}, "need gaf=GAFInputs"),
         (lambda: layouts(2), {"outputs": ("speed",)}, "not allowed; allowed: delta_pp"),
+        (lambda: layouts(2), {"outputs": ()}, "outputs is empty; allowed: a sequence of names"),
         (
             lambda: layouts(2),
             {"solver": "exact"},

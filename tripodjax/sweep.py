@@ -130,11 +130,11 @@ def _check_outputs(outputs: object, gaf: object, forces: object) -> tuple[str, .
             f"got a {type(outputs).__name__}"
         )
     outputs = tuple(outputs)
+    if not outputs:
+        raise ValueError(f"outputs is empty; allowed: {allowed}, at least one")
     unknown = [name for name in outputs if not isinstance(name, str) or name not in OUTPUTS]
-    if unknown or not outputs:
-        raise ValueError(
-            f"outputs {unknown or outputs!r} not allowed; allowed: {', '.join(OUTPUTS)}"
-        )
+    if unknown:
+        raise ValueError(f"outputs {unknown!r} not allowed; allowed: {', '.join(OUTPUTS)}")
     gaf_names = ", ".join(n for n in outputs if n in GAF_OUTPUTS)
     if gaf_names and gaf is not None and forces is not None:
         raise ValueError(
