@@ -7,7 +7,8 @@ Exit status (also in ``--help``):
   "infeasible" and names the smallest violations); the report is written either way;
 - 2: bad specification, arguments or output folder (one line, nothing computed);
 - 3: the report could not be written (the design is printed; an older report is left intact);
-- 130: interrupted (Ctrl-C, SIGINT); 143: terminated (SIGTERM); one line, no partial files.
+- 130: interrupted (Ctrl-C, SIGINT); 143: terminated (SIGTERM); one line, no partial files;
+- 141: the reader of its output left early (``| head``; the report is written), no traceback.
 
 The command handles SIGINT and SIGTERM from its first instruction: ``tripodjax`` and
 this module import nothing heavy, so ``--help`` and argument errors answer before JAX
@@ -25,7 +26,7 @@ import tempfile
 import threading
 import warnings
 
-from tripodjax._cli import ArgumentParser
+from tripodjax._cli import ArgumentParser, finish
 
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT, EXIT_WRITE_FAILED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 EXIT_TERMINATED = 143  # 128 + SIGTERM
@@ -124,7 +125,7 @@ def _parse(argv):
         epilog=(
             "Exit status: 0 converged and feasible; 1 not converged or infeasible (the report says "
             "which); 2 bad specification, arguments or --out; 3 the report could not be written; "
-            "130 interrupted (SIGINT), 143 terminated (SIGTERM). Compiled code is cached in $TRIPODJAX_CACHE_DIR (default "
+            "130 interrupted (SIGINT), 143 terminated (SIGTERM), 141 the output's reader left. Compiled code is cached in $TRIPODJAX_CACHE_DIR (default "
             "~/.cache/tripodjax/jax), which makes later runs faster."
         ),
     )
@@ -519,8 +520,7 @@ def command():
     """
     _install_handlers()
     gc.disable()
-    code = main()
-    sys.stdout.flush()
+    code = finish(main)
     sys.stderr.flush()
     if code == EXIT_INTERRUPTED:
         os._exit(code)

@@ -48,3 +48,24 @@ def test_an_argument_argparse_rejects_is_one_line_too():
         assert result.returncode == 2
         assert result.stderr.startswith(f"python -m tripodjax: {says}")
         assert result.stderr.count("\n") == 1 and result.stderr.endswith("(see --help)\n")
+
+
+def test_a_reader_that_left_early_ends_the_report_quietly():
+    """``python -m tripodjax | head -1``: the pipe's reader gone before the report is printed
+    ends the command with 141 (128 + SIGPIPE) and no traceback."""
+    import os
+
+    read, write = os.pipe()
+    os.close(read)  # the reader has left
+    try:
+        result = subprocess.run(
+            [sys.executable, "-m", "tripodjax", "--n-theta", "36"],
+            stdout=write,
+            stderr=subprocess.PIPE,
+            text=True,
+            timeout=300,
+        )
+    finally:
+        os.close(write)
+    assert result.returncode == 141, result.stderr
+    assert result.stderr == ""

@@ -3,7 +3,7 @@
 import math
 import sys
 
-from tripodjax._cli import ArgumentParser, count
+from tripodjax._cli import ArgumentParser, count, finish
 
 
 def _parser():
@@ -96,4 +96,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(finish(main))

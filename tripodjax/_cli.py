@@ -86,3 +86,20 @@ def write_json(prog, path, figures):
         print(f"{prog}: cannot write {path}: {error.strerror or error}", file=sys.stderr)
         return False
     return True
+
+
+EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE, as a shell reports a writer whose reader left
+
+
+def finish(main, *args):
+    """``main(*args)``'s exit status; a reader that closed the pipe early (``| head``) ends the
+    command quietly with ``EXIT_BROKEN_PIPE`` instead of a traceback."""
+    try:
+        code = main(*args)
+        sys.stdout.flush()
+    except BrokenPipeError:
+        # Python flushes stdout again at exit: point it at /dev/null first (Python's docs).
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        code = EXIT_BROKEN_PIPE
+    return code

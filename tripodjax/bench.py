@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from tripodjax._cli import ArgumentParser, count, counts, output_file, write_json
+from tripodjax._cli import ArgumentParser, count, counts, finish, output_file, write_json
 
 COMPARED = ("delta_pp", "irregularity", "gamma_pp", "ecc_max")
 SOLVERS = ("newton", "analytic", "closed_form")
@@ -1016,4 +1016,4 @@ def latency_main(argv: Sequence[str]) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(finish(main))
