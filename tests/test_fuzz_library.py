@@ -148,6 +148,8 @@ def bad_values(kind):
         return WRONG_TYPES | st.sampled_from(
             [[0.5, 0.6, 0.0], [-0.5, 1.0, 0.5], [math.nan, 0.5, 0.5], [math.inf, 0.0, 0.0]]
         )
+    if kind == "flag":  # True or False
+        return st.sampled_from(["yes", "", 1, 0, 1.0, None, [True], np.array([True, False])])
     if kind in ("choice",):
         return st.sampled_from(["", "nope", "Newton", "NEWTON ", None, 1, True, ["newton"]])
     if kind == "object":
@@ -446,13 +448,13 @@ BOUNDARY = {
     "solve_halfshaft": (
         tj.solve_halfshaft,
         dict(theta=np.linspace(0.0, 1.0, 4), rtol=1e-10, max_steps=24),
-        {"layout": "object", "rtol": "positive", "max_steps": "count"},
+        {"layout": "object", "rtol": "positive", "max_steps": "count", "throw": "flag"},
         "{}",
     ),
     "kinematic_metrics": (
         tj.kinematic_metrics,
         dict(n_theta=36, fidelity="newton"),
-        {"layout": "object", "n_theta": "count", "fidelity": "choice"},
+        {"layout": "object", "n_theta": "count", "fidelity": "choice", "throw": "flag"},
         "{}",
     ),
     "sweep": (
@@ -464,6 +466,7 @@ BOUNDARY = {
             "solver": "choice",
             "gaf": "object",
             "layouts": "object",
+            "throw": "flag",
         },
         "{}",
     ),

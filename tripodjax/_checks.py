@@ -219,6 +219,11 @@ def check_instance(name, value, cls, allowed):
     return value
 
 
+def check_flag(name, value):
+    """A switch: True or False (NumPy's bool too), not a truthy string or number."""
+    return check_instance(name, value, (bool, np.bool_), "True or False")
+
+
 # --------------------------------------------------------------------------- values
 
 

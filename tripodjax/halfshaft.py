@@ -44,7 +44,7 @@ from jax.custom_derivatives import SymbolicZero
 from jax.typing import ArrayLike, DTypeLike
 
 from tripodjax import solvers
-from tripodjax._checks import check_integer, check_real
+from tripodjax._checks import check_flag, check_integer, check_real
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.layout import Layout, check_layout
 from tripodjax.results import RESULTS, code_where
@@ -706,6 +706,7 @@ def solve_halfshaft(
     """
     check_layout(layout)
     check_real("theta", theta)  # the type only: a NaN θ is answered with NaN and a code
+    check_flag("throw", throw)
     solver = solvers.resolve_legacy(solver, rtol=rtol, max_steps=max_steps)
     sol = _solve(layout, theta, solver)
     if throw:

@@ -27,6 +27,7 @@ from jax.custom_derivatives import SymbolicZero
 from jax.typing import ArrayLike, DTypeLike
 
 from tripodjax import joint, solvers
+from tripodjax._checks import check_flag
 from tripodjax._compile import latency_bound_at_top_level
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.halfshaft import (
@@ -528,6 +529,7 @@ def kinematic_metrics(
         ``max_residual`` and ``error_estimate`` are not differentiated (0).
     """
     check_layout(layout, one=True)
+    check_flag("throw", throw)
     solver = solvers.resolve_legacy(solver, fidelity)
     n_theta = _check_n_theta(n_theta)
     metrics = _metrics_of_layout(layout, n_theta, solver)

@@ -27,6 +27,7 @@ from tripodjax import progress as progress_meters
 from tripodjax import solvers
 from tripodjax._checks import (
     check_devices,
+    check_flag,
     check_instance,
     check_integer,
     check_layout_domain,
@@ -457,6 +458,7 @@ def sweep(
         "forces_halfshaft of one layout, with jax.vmap over the layouts",
     )
     n = _check_layouts(layouts)
+    check_flag("throw", throw)
     solver = solvers.resolve(solver)
     outputs = _check_outputs(outputs, gaf, forces)
     n_theta = _check_n_theta(n_theta)
