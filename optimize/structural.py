@@ -34,6 +34,7 @@ from tripodjax.optimize.problem import (
     gear_names,
     load_cycles,
     load_spectrum,
+    m_max,
     report_arguments,
     spec_design,
 )
@@ -104,7 +105,9 @@ def halfshaft_checks(structure, values, design):
     and the optimiser's quantities and constraints (``problem.quantities``).
     """
     cycles = load_cycles(structure, values)
-    torque = jnp.stack([cycles.M_max_forward, cycles.M_max_backward])
+    # The parts carry the same torque in series: forward the M_max of the tripod's check
+    # (loads.M_max where the spec gives it, else the vehicle's), backward the vehicle's.
+    torque = jnp.stack([m_max(structure, values), cycles.M_max_backward])
     rows = shaft.fatigue_cycles(
         cycles, driving_modes(structure, values), reading=structure.shaft_reading
     )

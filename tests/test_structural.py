@@ -127,6 +127,19 @@ def test_outboard_equals_the_outboard_module(reports, reading):
     assert joint["life_passed"] == (joint["life_km"] >= 100_000.0)
 
 
+def test_a_given_m_max_is_the_forward_torque_of_every_part(reports):
+    """loads.M_max with the default [vehicle] (for the spectrum): the shaft sections and the
+    outboard joint are checked statically at that M_max forward, as the tripod is (the parts
+    carry the same torque in series); backward stays the vehicle's reverse-gear torque."""
+    given = optimize.halfshaft_report(optimize.parse_spec("[loads]\nM_max = 1300.0"))
+    vehicle_only = reports["consistent"]
+    assert given["static_torque_Nm"]["forward"] == 1300.0
+    assert given["static_torque_Nm"]["backward"] == vehicle_only["static_torque_Nm"]["backward"]
+    assert vehicle_only["static_torque_Nm"]["forward"] != 1300.0
+    joint = given["outboard"]
+    assert joint["static_safety"] == pytest.approx(joint["M_s_Nm"] / 1300.0, rel=1e-12)
+
+
 def test_a_failing_section_is_named_with_its_check():
     thin = optimize.parse_spec(
         "[shaft]\nouter_diameter_mm = [26.0, 27.5, 16.0, 30.685, 28.44]\n"
