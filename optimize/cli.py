@@ -260,8 +260,15 @@ def main(argv=None):
 
 
 def _summary(result):
+    from tripodjax.optimize.spec import variable_domain
+
     d = result.design
-    free = ", ".join(f"{k} = {d[k]:.4g}" for k in result.starts[0]["design"])
+
+    def with_unit(name):  # "R = 26.05 mm", "gamma0_deg = 20 deg", "conformity = 1.002"
+        unit = variable_domain(name)[0]
+        return f"{name} = {d[name]:.4g}" + ("" if unit == "–" else f" {unit}")
+
+    free = ", ".join(with_unit(k) for k in result.starts[0]["design"])
     return f"{free} (objective {result.objective:.5f})"
 
 

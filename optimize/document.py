@@ -666,6 +666,14 @@ def _forces(report):
         f"{fmt(cell(forces.get('mu_trunnion')))}, contact angle "
         f"{fmt(cell(forces.get('contact_angle_deg')))}°; result {forces.get('result', 'not given')}."
     ]
+    model = ((report.get("spec") or {}).get("friction") or {}).get("gaf_model")
+    if model in ("stroke", "printed"):  # the quantities' gaf_rms comes from another model
+        notes.append(
+            f"The quantities' gaf_rms ({fmt(cell((report.get('quantities') or {}).get('gaf_rms')))} "
+            f'N) is Lee\'s empirical friction model (friction.gaf_model = "{model}"), not this '
+            "statics: the two differ (the physics docs compare them); friction.gaf_model = "
+            '"forces" makes the optimiser use the force model\'s.'
+        )
     return Table("forces", "Forces inside the joint", columns, rows, notes)
 
 
@@ -715,6 +723,23 @@ def _reliability(report):
     return Table("reliability", "Reliability", columns, rows, notes)
 
 
+# A key's name ending → its unit (`mass_kg`, `tyre_radius_m`, `core_uts_MPa`, …).
+_SUFFIX_UNITS = {
+    "_deg": "deg",
+    "_mm": "mm",
+    "_m": "m",
+    "_kg": "kg",
+    "_MPa": "MPa",
+    "_Nm": "N·m",
+    "_N": "N",
+    "_km": "km",
+    "_rpm": "rpm",
+    "_pct": "%",
+    "_mm_s": "mm/s",
+    "_kmh": "km/h",
+}
+
+
 def spec_unit(key):
     """The unit of a spec key (``section.key`` or ``section.key[i]``), from the embedded spec."""
     from tripodjax.optimize.spec import DEFAULT_SPEC_TOML, QUANTITIES
@@ -723,8 +748,9 @@ def spec_unit(key):
     section, _, name = base.rpartition(".")
     if base in _LIST_UNITS:
         return _LIST_UNITS[base]
-    if name.endswith("_deg"):
-        return "deg"
+    for suffix, unit in _SUFFIX_UNITS.items():  # the unit a key's name ends with
+        if name.endswith(suffix):
+            return unit
     if section == "constraints" and name[4:] in QUANTITIES:
         return QUANTITIES[name[4:]][0]
     if section == "objective":
@@ -743,7 +769,11 @@ def spec_unit(key):
 
 
 def _spec_value(spec, key):
+    from tripodjax.optimize.spec import GREASE_MU_SLP
+
     base, _, index = key.partition("[")
+    if base == "friction.mu_slp" and "mu_slp" not in spec.get("friction", {}):
+        return GREASE_MU_SLP[spec["friction"]["grease"]]  # the grease's, where not given
     value = spec
     for part in base.split("."):
         value = value[part]

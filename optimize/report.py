@@ -372,7 +372,14 @@ def figure_catalogue(result, catalogue, choice, landscape=None):
         R, d = landscape["R"], landscape["d"]
         worst = np.min(np.stack(list(landscape["margins"].values())), axis=0)
         ax.contourf(R, d, (worst < 0).T.astype(float), levels=[0.5, 1.5], colors="0.85")
-        for k, (name, margin) in enumerate(landscape["margins"].items()):
+        # The boundaries on the grid: a margin of one sign over it (a requirement that R and d
+        # do not move, or one met or missed everywhere) has no zero line to draw or name.
+        crossing = {
+            name: margin
+            for name, margin in landscape["margins"].items()
+            if _crosses_zero(np.asarray(margin))
+        }
+        for k, (name, margin) in enumerate(crossing.items()):
             # 10 colours, then the next 10 dashed, …: no two boundaries drawn alike
             style = dict(color=f"C{k % 10}", linestyle=LINE_STYLES[k // 10 % len(LINE_STYLES)])
             ax.contour(
@@ -422,6 +429,12 @@ def figure_catalogue(result, catalogue, choice, landscape=None):
         [label(e["size"], 12) for e in catalogue],
     )
     return fig
+
+
+def _crosses_zero(values):
+    """Some finite value ≤ 0 and some ≥ 0 (a zero line to draw); NaN ignored, without warnings."""
+    finite = values[np.isfinite(values)]
+    return finite.size > 0 and finite.min() <= 0.0 <= finite.max()
 
 
 def _renderer(fig):

@@ -39,7 +39,7 @@ import numpy as np
 from tripodjax.optimize._compiled import call, latency_bound_jit
 from tripodjax.optimize.problem import bounds, check_result, check_spec, constraint_names
 from tripodjax.optimize.solver import Result, _evaluation, evaluate_points
-from tripodjax.optimize.spec import VARIABLES, Spec, shaft_variable
+from tripodjax.optimize.spec import _SPEC_UNITS, VARIABLES, Spec, shaft_variable
 
 ACTIVE_MULTIPLIER = 1e-6  # λ above this: the constraint is active
 SWITCH_STEP = 0.01  # relative change of an input within which a switch withholds its derivatives
@@ -227,15 +227,12 @@ def _switches(names, lam, margins, active, free, x, lower, upper, side, G0, H, J
     return out
 
 
-# Internal value path → (spec key, factor from per-internal-unit to per-spec-unit).
 def _spec_key(section, key):
-    if section == "layout" and key == "gamma0":
-        return "layout.gamma0_deg", math.pi / 180.0
-    if section == "life" and key == "condition_angle":
-        return "life.conditions.angle_deg", math.pi / 180.0
-    if section == "life" and key == "condition_share":
-        return "life.conditions.share", 1.0
-    return f"{section}.{key}", 1.0
+    """Internal value path → (spec key, factor from per-internal-unit to per-spec-unit): an
+    angle held in radians is a ``*_deg`` key of the file (``spec._SPEC_UNITS``)."""
+    name, unit = _SPEC_UNITS.get((section, key), (key, None))
+    name = ".".join(name) if isinstance(name, tuple) else name
+    return f"{section}.{name}", (math.pi / 180.0 if unit == "deg" else 1.0)
 
 
 def _free_entries(structure):
@@ -248,6 +245,9 @@ def _free_entries(structure):
     return out
 
 
+CONFORMITIES = ("hertz.conformity", "outboard.conformity")  # read as their clearance Ψ − 1
+
+
 def _labels(inputs):
     """Per column: (label, factor to spec units, the spec-unit value a relative change is of)."""
     out = []
@@ -256,9 +256,10 @@ def _labels(inputs):
         for i, p in enumerate(np.ravel(value)):
             label = spec_key if value.ndim == 0 else f"{spec_key}[{i}]"
             p_spec = math.degrees(float(p)) if factor != 1.0 else float(p)
-            # The conformity Ψ: per relative change of the clearance Ψ − 1 (a relative change of
-            # Ψ itself would read as a huge number).
-            relative_of = p_spec - 1.0 if label == "hertz.conformity" else p_spec
+            # A conformity Ψ (the tripod's, the outboard joint's): per relative change of the
+            # clearance Ψ − 1 (a relative change of Ψ itself would read as a huge number, and
+            # a switch within 1 % of Ψ would put Ψ below 1, where no spec may go).
+            relative_of = p_spec - 1.0 if label in CONFORMITIES else p_spec
             out.append((label, factor, relative_of))
     return out
 

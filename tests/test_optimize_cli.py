@@ -65,6 +65,9 @@ def test_cli_default_exits_0_and_writes_a_strict_report(cli_run):
     assert report["design"]["R_mm"] == pytest.approx(R, rel=2e-3)
     assert report["design"]["d_roller_mm"] == pytest.approx(d, rel=2e-3)
     assert "catalogue:" in result.stdout and "ad hoc:" in result.stdout
+    # the printed design with its units, the report's numbers
+    printed = f"R = {report['design']['R_mm']:.4g} mm, d_roller = {report['design']['d_roller_mm']:.4g} mm"
+    assert printed in result.stdout
     # No catalogue size lives 100 000 km in the workbook's vehicle (test_optimize.py).
     assert report["catalogue_choice"] is None and not any(
         e["feasible"] for e in report["catalogue"]

@@ -160,7 +160,15 @@ def test_report_opens_offline_in_chromium_with_the_reports_numbers(run):
                e.getBoundingClientRect().right > document.documentElement.clientWidth + 1)
                .map(e => e.dataset.table || e.alt)"""
         )
+        # and no number is broken over two lines (at its exponent's minus sign, say)
+        broken = page.evaluate(
+            """[...document.querySelectorAll("td.num")].filter(td => {
+               const range = document.createRange(); range.selectNodeContents(td.firstChild);
+               return new Set([...range.getClientRects()].map(r => Math.round(r.top))).size > 1;
+               }).map(td => td.textContent.trim())"""
+        )
     assert overflow == []
+    assert broken == []
     pdf = (EXAMPLE / "report.pdf").read_bytes()
     boxes = {tuple(map(float, b.split())) for b in re.findall(rb"/MediaBox\s*\[([^\]]*)\]", pdf)}
     assert len(boxes) == 1  # every page A4: 210 × 297 mm = 595.3 × 841.9 pt
@@ -646,6 +654,15 @@ def test_the_sensitivity_table_ranks_as_the_chart(run):
     near = ", ".join(notes["near_switch"]) or "none"
     assert f"(derivatives withheld): {near};" in table.notes[1]
     assert f"(near a switch: {near})" in switches.notes[0]
+    # every listed key has its value and unit: a grease's μ_slp, angles in degrees, a unit
+    # from the key's name (mass_kg), none left "not available"
+    for key, unit, value, *_ in table.rows:
+        assert isinstance(value, float), (key, value)
+        assert not any(key.endswith(s) for s in ("_kg", "_mm", "_m", "_MPa")) or unit != "–", key
+    assert next(row[2] for row in table.rows if row[0] == "friction.mu_slp") == 0.06  # grease A
+    grease_b = {**body["spec"], "friction": {"grease": "B", "lam": 0.007}}
+    rows = document.tables({**body, "spec": grease_b})["sensitivities"].rows
+    assert next(row[2] for row in rows if row[0] == "friction.mu_slp") == 0.09
 
 
 def test_the_pareto_front_lists_each_design_once(run):
@@ -839,9 +856,38 @@ def test_every_constraint_boundary_of_the_catalogue_figure_is_drawn_its_own_way(
     of a landscape with 23 margins is a different (colour, line style)."""
     R, d = np.linspace(20.0, 30.0, 5), np.linspace(30.0, 45.0, 6)
     margins = {f"c{k}": np.add.outer(R - 20.0 - k / 3.0, 0.0 * d) for k in range(23)}
+    margins["met everywhere"] = np.ones((5, 6))  # no zero line on the grid: not in the legend
+    margins["missed everywhere"] = -np.ones((5, 6))
+    margins["not computed"] = np.full((5, 6), np.nan)  # no line, and no warning
     result = types.SimpleNamespace(design={"R": 25.0, "d_roller": 40.0})
     fig = report.figure_catalogue(result, [], None, {"R": R, "d": d, "margins": margins})
     lines = [h for h in fig.legends[0].legend_handles if h.get_label().endswith(" = 0")]
-    assert len(lines) == 23
+    assert [h.get_label() for h in lines] == [f"c{k} = 0" for k in range(23)]
     styles = {(h.get_color(), h.get_linestyle()) for h in lines}
     assert len(styles) == 23
+
+
+def test_without_a_vehicle_the_validation_method_lists_only_the_steps_taken(run):
+    """A report without the halfshaft section (a spec without [vehicle]): the method says the
+    loads are the spec's and lists no shaft step; with it, the vehicle's loads and both shaft
+    steps."""
+    _, body = run
+    with_vehicle = document.render_validation(body)
+    without = document.render_validation({k: v for k, v in body.items() if k != "halfshaft"})
+    for html, vehicle in ((with_vehicle, True), (without, False)):
+        method = html[html.index('id="method"') : html.index('id="results"')]
+        assert ("From the vehicle" in method) == vehicle
+        assert ("without a vehicle" in method) == (not vehicle)
+        assert method.count("<strong>Shaft sections") == (2 if vehicle else 0)
+
+
+def test_the_forces_table_says_which_model_gives_the_objectives_gaf(run):
+    """Two GAF RMS in one report (the force model's table, the quantities' from Lee's model):
+    the forces table names the other one and its model."""
+    _, body = run
+    notes = document.tables(body)["forces"].notes
+    assert body["spec"]["friction"]["gaf_model"] == "stroke"
+    assert f"gaf_rms ({document.fmt(body['quantities']['gaf_rms'])} N)" in notes[-1]
+    assert 'friction.gaf_model = "stroke"' in notes[-1]
+    forces_model = {**body, "spec": {**body["spec"], "friction": {"gaf_model": "forces"}}}
+    assert len(document.tables(forces_model)["forces"].notes) == len(notes) - 1

@@ -58,7 +58,7 @@ def _columns(spec):
 
 
 def _perturbed(spec, section, key, index, factor):
-    """The spec's values with one number scaled by ``factor`` (the conformity: Ψ − 1), to solve
+    """The spec's values with one number scaled by ``factor`` (a conformity: Ψ − 1), to solve
     to the tolerance TIGHT.
 
     The solver asks for margins ≥ SAFETY · tolerance; every limit moves by the change of that
@@ -67,7 +67,7 @@ def _perturbed(spec, section, key, index, factor):
     values = jax.tree_util.tree_map(np.array, spec.values)
     cell = () if index is None else index
     value = values[section][key]
-    if (section, key) == ("hertz", "conformity"):
+    if f"{section}.{key}" in sensitivity.CONFORMITIES:  # its clearance Ψ − 1, as reported
         value[cell] = 1.0 + (value[cell] - 1.0) * factor
     else:
         value[cell] = value[cell] * factor
