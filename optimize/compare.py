@@ -21,6 +21,9 @@ REQUIRED = {"design": dict, "converged": bool, "constraints": dict}
 # zero up to the solve (an active constraint's margin is of the order of the solver's tolerance)
 # and the relative change is noise: the page gives the change B − A alone.
 NEAR_ZERO = 1e-3
+# Relative to the larger of A and B, a difference below ROUNDOFF is the arithmetic's, not a
+# change (the solve is converged to 1e-8): the page shows 0, where it showed e.g. −3.6e-15.
+ROUNDOFF = 1e-12
 
 
 def load(folder):
@@ -68,6 +71,8 @@ def _change(a, b, scale=None):
     if not (isinstance(a, float) and isinstance(b, float)):
         reason = a if isinstance(a, NotAvailable) else b if isinstance(b, NotAvailable) else None
         return (NotAvailable(str(reason) if reason else "not a number"),) * 2
+    if abs(b - a) <= ROUNDOFF * max(abs(a), abs(b)):
+        return 0.0, 0.0
     scale = max(abs(a), abs(b)) if scale is None else scale
     if a == 0 or abs(a) < NEAR_ZERO * scale:
         return b - a, NotAvailable(f"A is near 0 (|A| < {NEAR_ZERO:g} of its scale); see B − A")

@@ -149,3 +149,11 @@ def test_units_and_relative_changes_of_near_zero_numbers():
     assert "<td>R_mm</td><td>mm</td>" in design and "<td>conformity</td><td>–</td>" in design
     margins_html = html.split('data-table="margins"')[1].split("</table>")[0]
     assert "near 0" in margins_html
+
+
+def test_a_difference_of_roundoff_is_no_change():
+    """Two runs of one design differ in the last digits only: the page shows no change."""
+    assert compare._change(26.051335186072663, 26.05133518607263) == (0.0, 0.0)
+    assert compare._change(0.0, 0.0) == (0.0, 0.0)
+    change, relative = compare._change(26.05, 26.06)
+    assert change == pytest.approx(0.01) and relative == pytest.approx(0.01 / 26.05)
