@@ -517,11 +517,16 @@ def _halfshaft_checks(halfshaft):
     o = _get(halfshaft, "outboard")
     required = cell(o.get("required_km"))
     km = cell(o.get("life_km"))
+    k_s = cell(o.get("required_static_safety"))
+    forward = cell((halfshaft.get("static_torque_Nm") or {}).get("forward"))
+    static = f"M_s/M_max ≥ {fmt(k_s)}"
+    if isinstance(k_s, float) and isinstance(forward, float):  # as the tripod's row says it
+        static += f" (M_s ≥ {fmt(k_s * forward)} N·m)"
     rows = [
         [
             "outboard joint",
             "Hertz static capacity M_s; safety M_s/M_max",
-            f"M_s/M_max ≥ {fmt(cell(o.get('required_static_safety')))}",
+            static,
             cell(o.get("M_s_Nm")),
             "N·m",
             cell(o.get("static_safety")),

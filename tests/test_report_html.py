@@ -891,3 +891,17 @@ def test_the_forces_table_says_which_model_gives_the_objectives_gaf(run):
     assert 'friction.gaf_model = "stroke"' in notes[-1]
     forces_model = {**body, "spec": {**body["spec"], "friction": {"gaf_model": "forces"}}}
     assert len(document.tables(forces_model)["forces"].notes) == len(notes) - 1
+
+
+def test_each_joints_static_requirement_names_its_capacity_limit(run):
+    """The verdict table's static rows say M_s ≥ k_s · M_max in N·m for both joints."""
+    _, body = run
+    rows = {(r[0], r[1]): r[2] for r in document.tables(body)["validation"].rows}
+    static = "Hertz static capacity M_s; safety M_s/M_max"
+    k_s = body["halfshaft"]["outboard"]["required_static_safety"]
+    forward = body["halfshaft"]["static_torque_Nm"]["forward"]
+    limit = document.fmt(k_s * forward)
+    assert (
+        rows[("outboard joint", static)] == f"M_s/M_max ≥ {document.fmt(k_s)} (M_s ≥ {limit} N·m)"
+    )
+    assert rows[("inboard tripod", static)].endswith(f"(M_s ≥ {limit} N·m)")  # one M_max for both
