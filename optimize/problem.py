@@ -252,10 +252,11 @@ def driving_modes(structure, values):
     return vehicle.DrivingModes(weight=modes["weight"], use=jnp.stack(use, axis=-1))
 
 
-def m_max(structure, values):
-    """M_max [N·m]: ``loads.M_max``, or the vehicle's largest forward working torque."""
+def m_max(structure, values, cycles=None):
+    """M_max [N·m]: ``loads.M_max``, or the vehicle's largest forward working torque
+    (``cycles``: the vehicle's load cycles where the caller formed them, not traced again)."""
     if structure.m_max_from_vehicle:
-        return load_cycles(structure, values).M_max_forward
+        return (load_cycles(structure, values) if cycles is None else cycles).M_max_forward
     return values["loads"]["M_max"]
 
 

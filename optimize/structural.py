@@ -107,7 +107,7 @@ def halfshaft_checks(structure, values, design):
     cycles = load_cycles(structure, values)
     # The parts carry the same torque in series: forward the M_max of the tripod's check
     # (loads.M_max where the spec gives it, else the vehicle's), backward the vehicle's.
-    torque = jnp.stack([m_max(structure, values), cycles.M_max_backward])
+    torque = jnp.stack([m_max(structure, values, cycles), cycles.M_max_backward])
     rows = shaft.fatigue_cycles(
         cycles, driving_modes(structure, values), reading=structure.shaft_reading
     )

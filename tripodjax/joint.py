@@ -49,10 +49,6 @@ def direction_cosines(gamma: ArrayLike, tau: ArrayLike) -> jax.Array:
     last column is the spider axis Z' in the pot frame. Shape ``(..., 3, 3)``.
     """
     _check(gamma=gamma, tau=tau)
-    return _direction_cosines(gamma, tau)
-
-
-def _direction_cosines(gamma, tau):
     gamma, tau = jnp.broadcast_arrays(gamma, tau)
     cg, sg, ct, st = jnp.cos(gamma), jnp.sin(gamma), jnp.cos(tau), jnp.sin(tau)
     zero = jnp.zeros_like(gamma)
@@ -84,10 +80,6 @@ def eccentricity_components(
 ) -> tuple[jax.Array, jax.Array]:
     """Eccentricity components (e_x, e_y) = e (cos 3ψ, sin 3ψ) [mm] (2.5.8)."""
     _check(R=R, gamma=gamma, psi=psi)
-    return _eccentricity_components(R, gamma, psi)
-
-
-def _eccentricity_components(R, gamma, psi):
     e = _eccentricity(R, gamma)
     return e * jnp.cos(3.0 * psi), e * jnp.sin(3.0 * psi)
 
@@ -163,10 +155,6 @@ def roller_radial_distance(R: ArrayLike, gamma: ArrayLike, psi: ArrayLike) -> ja
     |r_i| = R + e (1 + 2 cos 2ψ_i), which ranges over R − e … R + 3e.
     """
     _check(R=R, gamma=gamma, psi=psi)
-    return _roller_radial_distance(R, gamma, psi)
-
-
-def _roller_radial_distance(R, gamma, psi):
     e = _eccentricity(R, gamma)[..., None]
     R = jnp.asarray(R)
     return R + e * (1.0 + 2.0 * jnp.cos(2.0 * _roller_angles(psi)))
@@ -175,9 +163,5 @@ def _roller_radial_distance(R, gamma, psi):
 def roller_path_semi_axes(R: ArrayLike, gamma: ArrayLike) -> tuple[jax.Array, jax.Array]:
     """Semi-axes (R / cos γ, R) [mm] of the elliptical roller-centre path (2.6.3)."""
     _check(R=R, gamma=gamma)
-    return _roller_path_semi_axes(R, gamma)
-
-
-def _roller_path_semi_axes(R, gamma):
     R = jnp.asarray(R)
     return R / jnp.cos(gamma), R * jnp.ones_like(gamma)
