@@ -455,3 +455,30 @@ def test_a_spectrum_whose_lists_differ_in_length_is_named():
     # M_d with leading axes: one life per entry, as documented
     hours = life.life_hours(np.array([[1500.0], [1600.0]]), [500.0, 800.0], [1e3, 2e3], [0.5, 0.5])
     assert np.shape(hours) == (2, 1) and float(hours[1, 0]) > float(hours[0, 0])
+
+
+def test_life_of_small_inputs_compiles_for_latency_and_of_large_ones_for_throughput():
+    """A library program called at top level is compiled with the latency options where no
+    input holds more than SMALL_INPUT elements, with XLA's defaults beyond (a throughput
+    program), and inside a caller's trace as part of the caller's program; the answers agree."""
+    from tripodjax._compile import SMALL_INPUT
+
+    program = life._life_hours
+    # Seven cases: a signature no other test compiles, so that each call compiles anew.
+    torque = np.array([1000.0, 800.0, 700.0, 500.0, 400.0, 300.0, 0.0])
+    speed = np.array([100.0, 150.0, 200.0, 300.0, 400.0, 500.0, 600.0])
+    spectrum = (torque, speed, np.full(7, 1.0 / 7.0))
+    many = np.full((SMALL_INPUT + 1, 1), 1733.0)  # one M_d a row
+
+    def grown(*args):
+        before = [p._cache_size() for p in (program.latency_bound, program.plain)]
+        value = life.life_hours(*args)
+        after = [p._cache_size() for p in (program.latency_bound, program.plain)]
+        return value, [a - b for a, b in zip(after, before, strict=True)]
+
+    one, small = grown(np.float64(1733.0), *spectrum)
+    row, large = grown(many, *spectrum)
+    assert small == [1, 0] and large == [0, 1]
+    nested = jax.jit(lambda m: life.life_hours(m, *spectrum))(1733.0)
+    np.testing.assert_allclose(row, float(one), rtol=1e-12)
+    assert float(nested) == pytest.approx(float(one), rel=1e-12)

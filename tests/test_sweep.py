@@ -1,5 +1,6 @@
 """Batch sweeps and fidelity levels (tripodjax.sweep, analytic_halfshaft)."""
 
+import importlib
 import json
 import os
 import subprocess
@@ -47,6 +48,29 @@ def test_chunking_does_not_change_results():
     chunked = sweep(batch, outputs=("delta_pp", "irregularity"), chunk_size=5)
     for name in whole:
         np.testing.assert_array_equal(chunked[name], whole[name])
+
+
+def test_a_small_sweep_compiles_for_latency_and_a_large_one_for_throughput(monkeypatch):
+    """Up to SMALL_SWEEP solved points a sweep's chunk program is compiled with the latency
+    options, beyond it with XLA's defaults; the two programs round alike but for fusion: their
+    results agree to a few ulps."""
+    sweep_module = importlib.import_module("tripodjax.sweep")  # tripodjax.sweep is the function
+    batch = layouts(8)
+    names = ("delta_pp", "irregularity", "gamma_pp", "ecc_max")
+    programs = (sweep_module._evaluate_for_latency, sweep_module._evaluate_for_throughput)
+
+    def compiled_by(**kw):
+        before = [p._cache_size() for p in programs]
+        out = sweep(batch, outputs=names, **kw)
+        return out, [p._cache_size() - b for p, b in zip(programs, before, strict=True)]
+
+    small, grown = compiled_by(solver=Newton(rtol=1e-13))
+    assert grown == [1, 0] and 8 * 120 <= sweep_module.SMALL_SWEEP
+    monkeypatch.setattr(sweep_module, "SMALL_SWEEP", 8 * 120 - 1)  # one point too many
+    large, grown = compiled_by(solver=Newton(rtol=1e-13))
+    assert grown == [0, 1]
+    for name in names:
+        np.testing.assert_allclose(large[name], small[name], rtol=16 * np.finfo(float).eps)
 
 
 def test_gaf_outputs_match_gaf_halfshaft():

@@ -12,12 +12,17 @@ hoisting, the solve's program compiles in 3.1 s instead of 3.9 s and the chance-
 one in 9.1 s instead of 12.9 s (the same module compiled in one process, best of 3), and a
 solve runs 0.10 → 0.12 s. Results are the same arithmetic (no fast-math): equal to roundoff.
 
-Throughput programs (a sweep's chunks, Monte Carlo chunks) keep XLA's defaults.
+Throughput programs (a sweep's chunks, Monte Carlo chunks) keep XLA's defaults where they run
+long. A small one, which runs for milliseconds, is compiled with ``SMALL_SWEEP_OPTIONS`` (a
+sweep of up to ``tripodjax.sweep.SMALL_SWEEP`` solved points), and a library function of arrays
+(``latency_bound_at_top_level(..., small_inputs=True)``) with ``LATENCY_BOUND`` where no input
+holds more than ``SMALL_INPUT`` elements.
 """
 
 import functools
 
 import jax
+import numpy as np
 
 LATENCY_BOUND = {
     # The legacy loop emitters compile a fusion in a fraction of the MLIR emitters' time.
@@ -30,21 +35,52 @@ LATENCY_BOUND = {
     "xla_disable_hlo_passes": "while-loop-invariant-code-motion",
 }
 
+SMALL_SWEEP_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
+"""A small sweep's chunk program: the legacy fusion emitters alone (LLVM still optimises). A
+sweep of 1000 layouts at newton (2-core AMD EPYC, fresh processes): first call 1.29 → 0.94 s,
+later calls 4.1 → 6.2 ms; with all of ``LATENCY_BOUND``, 0.72 s and 18 ms, and two programs of
+one computation round apart (a sweep's default outputs and each output alone: 59 of 300 values
+an ulp apart; none with these options alone)."""
+
 latency_bound_jit = functools.partial(jax.jit, compiler_options=LATENCY_BOUND)
 """``jax.jit`` with ``LATENCY_BOUND``; takes jax.jit's other arguments (static_argnums, …)."""
 
 
-def latency_bound_at_top_level(fun, **jit_kwargs):
+SMALL_INPUT = 1 << 16
+"""Elements of a program's largest input up to which ``latency_bound_at_top_level(...,
+small_inputs=True)`` compiles it with ``LATENCY_BOUND`` (a Hertz sizing, a life, a shaft check
+of one design or a few thousand: microseconds to run, a second to compile with XLA's defaults,
+half that with these)."""
+
+
+def latency_bound_at_top_level(fun, *, small_inputs=False, **jit_kwargs):
     """``fun`` compiled with ``LATENCY_BOUND`` where it is called at top level, and as a plain
     ``jax.jit`` inside another trace (a user's ``jax.jit``, ``vmap``, ``grad``): JAX takes
     compiler options on a top-level program only, and a nested one is compiled with its caller.
-    ``jit_kwargs``: jax.jit's other arguments (static_argnames, …)."""
+
+    With ``small_inputs``, only where no input holds more than ``SMALL_INPUT`` elements: a
+    function of arrays of any size (a Hertz sizing of a million designs) keeps XLA's defaults
+    where it is a throughput program. ``jit_kwargs``: jax.jit's other arguments
+    (static_argnames, …)."""
     top_level, nested = latency_bound_jit(fun, **jit_kwargs), jax.jit(fun, **jit_kwargs)
 
     @functools.wraps(fun)
     def call(*args, **kwargs):
         leaves = jax.tree_util.tree_leaves((args, kwargs))
-        traced = any(isinstance(leaf, jax.core.Tracer) for leaf in leaves)
-        return (nested if traced else top_level)(*args, **kwargs)
+        if not _at_top_level(leaves):
+            return nested(*args, **kwargs)
+        if small_inputs and max((np.size(leaf) for leaf in leaves), default=0) > SMALL_INPUT:
+            return nested(*args, **kwargs)
+        return top_level(*args, **kwargs)
 
+    call.latency_bound, call.plain = top_level, nested  # the two compiled functions
     return call
+
+
+def _at_top_level(leaves):
+    """Whether no trace is active (a library function called with constants inside another
+    program is nested too); where JAX does not say, whether no argument is traced."""
+    clean = getattr(jax._src.core, "trace_state_clean", None)
+    if clean is not None:
+        return clean()
+    return not any(isinstance(leaf, jax.core.Tracer) for leaf in leaves)

@@ -427,7 +427,9 @@ def roller_forces(
     return _roller_forces(layout, theta, inputs, solver=solvers.resolve(solver), case=case)
 
 
-@functools.partial(jax.jit, static_argnames=("solver", "case"))
+@functools.partial(
+    latency_bound_at_top_level, small_inputs=True, static_argnames=("solver", "case")
+)
 def _roller_forces(layout, theta, inputs, *, solver, case):
     dtype = jnp.result_type(layout.R, layout.l, layout.gamma0, theta, 0.0)
     fields = [jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0, theta)]

@@ -45,6 +45,7 @@ from jax.typing import ArrayLike, DTypeLike
 
 from tripodjax import solvers
 from tripodjax._checks import check_flag, check_integer, check_real
+from tripodjax._compile import latency_bound_at_top_level
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.layout import Layout, check_layout
 from tripodjax.results import RESULTS, code_where
@@ -714,7 +715,7 @@ def solve_halfshaft(
     return sol
 
 
-@functools.partial(jax.jit, static_argnames=("solver",))
+@functools.partial(latency_bound_at_top_level, small_inputs=True, static_argnames=("solver",))
 def _solve(layout, theta, solver):
     R, l, gamma0, theta = _working_arrays(layout, theta)
     if isinstance(solver, Newton):

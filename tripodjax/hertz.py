@@ -28,6 +28,7 @@ and the results that depend on the Hertz ellipse-ratio solve carry a per-point
 ``result`` code ([`tripodjax.results.RESULTS`][tripodjax.results.RESULTS]).
 """
 
+import functools
 import math
 
 import jax
@@ -46,6 +47,7 @@ from tripodjax._checks import (
     check_range,
     check_working_angle,
 )
+from tripodjax._compile import latency_bound_at_top_level
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.results import RESULTS, code_where, worst
 
@@ -246,7 +248,7 @@ def _check_cos_tau(cos_tau, name="cos_tau"):
     check_range(name, cos_tau, 0.0, 1.0, high_open=True)
 
 
-@jax.jit
+@functools.partial(latency_bound_at_top_level, small_inputs=True)
 def _hertz_coefficients(cos_tau):
     c = jnp.asarray(cos_tau, jnp.result_type(cos_tau, 0.0))
     c = _nan_unless((c >= 0) & (c < 1), c)
@@ -545,7 +547,7 @@ def capacities(
     return _capacities(**arguments)
 
 
-@jax.jit
+@functools.partial(latency_bound_at_top_level, small_inputs=True)
 def _capacities(
     d,
     R,

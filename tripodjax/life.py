@@ -55,6 +55,7 @@ from tripodjax._checks import (
     check_working_angle,
     checked_pytree_dataclass,
 )
+from tripodjax._compile import latency_bound_at_top_level
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.hertz import (
     _all_finite,
@@ -141,7 +142,7 @@ def life_hours(M_d: ArrayLike, torque: ArrayLike, speed: ArrayLike, share: Array
     return _life_hours(M_d, torque, speed, share)
 
 
-@jax.jit
+@functools.partial(latency_bound_at_top_level, small_inputs=True)
 def _life_hours(M_d, torque, speed, share):
     """`life_hours` past its checks: one compiled program."""
     rate, _ = _damage_rate(M_d, torque, speed, share)
@@ -304,7 +305,7 @@ def joint_life(
     return _joint_life(**arguments)
 
 
-@functools.partial(jax.jit, static_argnames="angle_law")
+@functools.partial(latency_bound_at_top_level, small_inputs=True, static_argnames="angle_law")
 def _joint_life(
     d,
     R,

@@ -14,6 +14,8 @@ Lengths in mm, velocities in mm/s, accelerations in mm/s² (the seed quotes
 m/s²: divide by 1000).
 """
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -21,6 +23,7 @@ from jax.typing import ArrayLike
 
 from tripodjax import joint
 from tripodjax._checks import check_real, check_shapes
+from tripodjax._compile import latency_bound_at_top_level
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.halfshaft import solve_halfshaft
 from tripodjax.layout import Layout, check_layout
@@ -108,7 +111,7 @@ def halfshaft_motion(
     return _halfshaft_motion(layout, theta, theta_dot, theta_ddot)
 
 
-@jax.jit
+@functools.partial(latency_bound_at_top_level, small_inputs=True)
 def _halfshaft_motion(layout, theta, theta_dot, theta_ddot):
     (R, l, gamma0), (theta, theta_dot, theta_ddot) = _prepare(layout, theta, theta_dot, theta_ddot)
 
@@ -133,7 +136,7 @@ def first_order_motion(
     return _first_order_motion(layout, theta, theta_dot, theta_ddot)
 
 
-@jax.jit
+@functools.partial(latency_bound_at_top_level, small_inputs=True)
 def _first_order_motion(layout, theta, theta_dot, theta_ddot):
     (R, _, gamma0), (theta, theta_dot, theta_ddot) = _prepare(layout, theta, theta_dot, theta_ddot)
     gamma = jnp.broadcast_to(gamma0, theta.shape)

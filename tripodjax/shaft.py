@@ -100,6 +100,7 @@ from tripodjax._checks import (
     check_shapes,
     checked_pytree_dataclass,
 )
+from tripodjax._compile import latency_bound_at_top_level
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.hertz import _nan_unless
 from tripodjax.results import RESULTS, code_where
@@ -430,7 +431,7 @@ def static_check(section: Section, material: Material, torque: ArrayLike) -> Sta
     return _static_check(section, material, torque)
 
 
-@jax.jit
+@functools.partial(latency_bound_at_top_level, small_inputs=True)
 def _static_check(section, material, torque):
     radius, uts = _kinks(section, material)
     allowed = uts / (jnp.asarray(material.safety)[..., None] * SQRT3)
@@ -514,7 +515,7 @@ def fatigue_cycles(
     return _fatigue_cycles(cycles, modes, event_rate, reading == "workbook")
 
 
-@functools.partial(jax.jit, static_argnums=3)
+@functools.partial(latency_bound_at_top_level, small_inputs=True, static_argnums=3)
 def _fatigue_cycles(cycles, modes, event_rate, workbook):
     use = jnp.asarray(modes.use)
     weight = jnp.asarray(modes.weight)
@@ -608,7 +609,7 @@ def fatigue_check(
     return _fatigue_check(s, m, rows, reading == "workbook")
 
 
-@functools.partial(jax.jit, static_argnums=3)
+@functools.partial(latency_bound_at_top_level, small_inputs=True, static_argnums=3)
 def _fatigue_check(s, m, rows, workbook):
     r_o = jnp.asarray(s.outer_diameter) / 2.0
     r_tr = r_o - s.hardened_depth - s.transition_depth

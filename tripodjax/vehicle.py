@@ -62,6 +62,7 @@ from tripodjax._checks import (
     check_shares,
     checked_pytree_dataclass,
 )
+from tripodjax._compile import latency_bound_at_top_level
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.life import LoadSpectrum
 
@@ -269,7 +270,7 @@ def load_cycles(
     return _load_cycles(vehicle, modes, required_km, axle)
 
 
-@functools.partial(jax.jit, static_argnums=3)
+@functools.partial(latency_bound_at_top_level, small_inputs=True, static_argnums=3)
 def _load_cycles(vehicle, modes, required_km, axle):
     """`load_cycles` past its checks: one compiled program (its operations one by one compiled
     each on a first call: 1.1 s, against 0.3 s)."""
