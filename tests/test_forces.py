@@ -10,6 +10,7 @@ import pytest
 import reference
 
 from tripodjax import Layout, forces, friction, seed_case
+from tripodjax._compile import latency_bound_jit
 from tripodjax.results import RESULTS
 
 GREASE_A = friction.GREASE_A  # μ 0.06, λ 0.007
@@ -364,7 +365,8 @@ def test_every_solver_level_and_vmap_over_layouts():
         sol, rates = revolution(layout, 120, "newton", with_rates=True)
         return forces.force_quantities(layout, sol, rates, inputs, ("gaf_third_order", "lts_mean"))
 
-    batch = jax.jit(jax.vmap(one))(layouts)  # one program, not each operation compiled alone
+    # One program (not each operation compiled alone), compiled for latency as the tests' own.
+    batch = latency_bound_jit(jax.vmap(one))(layouts)
     for i in range(2):
         single = _quantities(
             Layout(*(float(getattr(layouts, n)[i]) for n in ("R", "l", "gamma0"))), inputs, 120
@@ -374,8 +376,8 @@ def test_every_solver_level_and_vmap_over_layouts():
     # A batch passed whole (the sweep's way: the layouts on the arrays' last axis) as under vmap.
     solved = jax.vmap(lambda layout: revolution(layout, 120, "newton", with_rates=True))(layouts)
     names = (*forces.QUANTITIES, "result")
-    whole = jax.jit(lambda: forces.force_quantities(layouts, *solved, inputs, names))()
-    mapped = jax.jit(
+    whole = latency_bound_jit(lambda: forces.force_quantities(layouts, *solved, inputs, names))()
+    mapped = latency_bound_jit(
         jax.vmap(lambda layout, s: forces.force_quantities(layout, *s, inputs, names))
     )(layouts, solved)
     for name in names:
@@ -411,7 +413,7 @@ def test_gradients_against_finite_differences():
         r = forces.forces_halfshaft(lay, inp, 120)
         return {n: getattr(r, n) for n in NAMES}
 
-    derivative = jax.jit(lambda p, t: jax.jvp(lambda q: quantities(*q), (p,), (t,))[1])
+    derivative = latency_bound_jit(lambda p, t: jax.jvp(lambda q: quantities(*q), (p,), (t,))[1])
     fields = ("R", "l", "gamma0", "torque", "mu_slp", "lam", "mu_trunnion")
 
     def direction(field):

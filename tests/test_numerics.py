@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from tripodjax import Layout, friction, kinematic_metrics, sweep
+from tripodjax._compile import latency_bound_jit
 from tripodjax.kinematics import metrics_from, period_grid, revolution
 from tripodjax.results import RESULTS
 from tripodjax.solvers import Analytic
@@ -122,10 +123,11 @@ def test_grad_at_gamma0_zero_is_the_one_sided_derivative(solver, ratio):
         sol, rates = revolution(layout, N_THETA, solver, with_rates=True)
         return metrics_from(layout, sol, rates, tuple(expected))
 
-    # Compiled: op by op, each primitive of the solve and its transpose compiles alone (37 s).
-    grads = jax.jit(jax.jacrev(metrics))(0.0)  # reverse mode, as jax.grad of each
+    # Compiled (op by op, each primitive of the solve and its transpose compiles alone: 37 s),
+    # for latency: the values are the same arithmetic.
+    grads = latency_bound_jit(jax.jacrev(metrics))(0.0)  # reverse mode, as jax.grad of each
     step = 1e-7
-    at_step = jax.jit(metrics)(step)  # the values at γ0 = 0 are 0
+    at_step = latency_bound_jit(metrics)(step)  # the values at γ0 = 0 are 0
     for name, slope in expected.items():
         grad, forward = float(grads[name]), float(at_step[name]) / step
         assert grad == pytest.approx(slope, rel=1e-12, abs=1e-300), name
