@@ -123,8 +123,8 @@ def test_grad_at_gamma0_zero_is_the_one_sided_derivative(solver, ratio):
         sol, rates = revolution(layout, N_THETA, solver, with_rates=True)
         return metrics_from(layout, sol, rates, tuple(expected))
 
-    # Compiled (op by op, each primitive of the solve and its transpose compiles alone: 37 s),
-    # for latency: the values are the same arithmetic.
+    # One compiled program each (op by op, every primitive of the solve and its transpose
+    # compiles alone: 37 s), compiled for latency: the same arithmetic, to roundoff.
     grads = latency_bound_jit(jax.jacrev(metrics))(0.0)  # reverse mode, as jax.grad of each
     step = 1e-7
     at_step = latency_bound_jit(metrics)(step)  # the values at γ0 = 0 are 0

@@ -222,7 +222,7 @@ def _evaluate_chunk(layouts, gaf, forces, *, n_theta, solver, outputs):
 # A sweep's chunk program: up to ``SMALL_SWEEP`` solved points (1092 layouts at newton and
 # n_theta = 360, 10 922 where every output comes from the analytic level's series) it runs for
 # milliseconds and is compiled with ``SMALL_SWEEP_OPTIONS``: its first call 0.3-0.4 s sooner,
-# each call up to 1.5x longer. Larger sweeps keep XLA's defaults (throughput).
+# each call up to 1.5× longer. Larger sweeps keep XLA's defaults (throughput).
 SMALL_SWEEP = 1 << 17
 _CHUNK_STATIC = ("n_theta", "solver", "outputs")
 _evaluate_for_throughput = jax.jit(_evaluate_chunk, static_argnames=_CHUNK_STATIC)
