@@ -9,7 +9,8 @@ import pytest
 import reference
 from scipy.optimize import brentq
 
-from tripodjax import Layout, catalogue, friction, seed_case
+from tripodjax import Layout, catalogue, friction, seed_case, solvers
+from tripodjax._compile import latency_bound_jit
 from tripodjax.kinematics import period_grid
 
 PARAMS_EXAMPLE = friction.GREASE_A.replace(mu_slp=0.04, lam=0.007)  # the seed's GAF example
@@ -179,6 +180,36 @@ def test_gradients_of_halfshaft_gaf_rms_match_finite_differences(model):
         assert float(getattr(g_layout, name)) == pytest.approx(
             central_difference(moved, base, step), rel=1e-4
         ), name
+
+
+@pytest.mark.parametrize("model", ["stroke", "printed"])
+def test_an_eager_gaf_derivative_runs_the_jacobian_program_and_equals_reverse_mode(model):
+    """jax.grad and jax.jacfwd of the halfshaft GAF answer from one program of the values and
+    their Jacobian, compiled at top level for latency: equal to reverse mode through the
+    revolution, eagerly and under jit (the rule's traced path)."""
+    layout, params = Layout.from_degrees(28.0, 450.0, 18.0), friction.GREASE_A.replace(lam=0.01)
+
+    def gaf(lay, torque, p):
+        return friction.gaf_halfshaft(lay, torque, p, 60, model=model)
+
+    def plain(lay, torque, p):  # the function itself, reverse mode through the solve
+        inputs = friction.GAFInputs(torque, p, model)
+        out = friction._gaf_over_revolution(lay, inputs, 60, solvers.resolve("newton"))
+        return out.third_order, out.force
+
+    program = friction._gaf_and_jacobian.latency_bound
+    before = program._cache_size()
+    got = jax.grad(lambda *a: gaf(*a).third_order, argnums=(0, 1, 2))(layout, 900.0, params)
+    forward = jax.jacfwd(lambda *a: gaf(*a).force, argnums=(0, 1, 2))(layout, 900.0, params)
+    assert program._cache_size() == before + 1  # one program for both
+    want = latency_bound_jit(jax.jacrev(plain, argnums=(0, 1, 2)))(layout, 900.0, params)
+    for got_, want_ in ((got, want[0]), (forward, want[1])):
+        for g, w in zip(*(jax.tree_util.tree_leaves(x) for x in (got_, want_)), strict=True):
+            np.testing.assert_allclose(g, w, rtol=1e-11, atol=1e-11 * np.abs(w).max() + 1e-300)
+    jitted = jax.jit(jax.grad(lambda *a: gaf(*a).third_order, argnums=(0, 1, 2)))
+    traced = jax.tree_util.tree_leaves(jitted(layout, 900.0, params))
+    for g, w in zip(traced, jax.tree_util.tree_leaves(got), strict=True):
+        assert float(g) == pytest.approx(float(w), rel=1e-12, abs=1e-300)
 
 
 def test_float32_gaf_close_to_float64(float32_default):

@@ -15,7 +15,6 @@ the one-sided derivative instead of the 0 that max − min over tying samples
 gives.
 """
 
-import contextlib
 import functools
 import numbers
 from collections.abc import Iterable
@@ -23,12 +22,17 @@ from collections.abc import Iterable
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jax.custom_derivatives import SymbolicZero
 from jax.typing import ArrayLike, DTypeLike
 
 from tripodjax import joint, solvers
 from tripodjax._checks import check_flag
 from tripodjax._compile import latency_bound_at_top_level
+from tripodjax._derivatives import (
+    differentiable,
+    jvp_from_jacobian,
+    plain_jvp,
+    values_and_jacobian,
+)
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.halfshaft import (
     HalfshaftSolution,
@@ -543,14 +547,6 @@ def _every_metric(layout, n_theta, solver):
     return KinematicMetrics(**metrics_from(layout, sol, rates, METRICS))
 
 
-def _differentiable(layout):
-    """The indices of the layout's leaves that are differentiated: its floating-point fields."""
-    leaves = jax.tree_util.tree_leaves(layout)
-    return [
-        i for i, leaf in enumerate(leaves) if jnp.issubdtype(jnp.result_type(leaf), jnp.inexact)
-    ]
-
-
 @functools.partial(latency_bound_at_top_level, static_argnames=("n_theta", "solver"))
 def _metrics_and_jacobian(layout, *, n_theta, solver):
     """Every metric of one layout and its Jacobian w.r.t. the layout's floating-point fields.
@@ -567,7 +563,7 @@ def _metrics_and_jacobian(layout, *, n_theta, solver):
     interpolating level's series extremes linearise the revolution at every angle.
     """
     leaves, tree = jax.tree_util.tree_flatten(layout)
-    moving = _differentiable(layout)
+    moving = differentiable(leaves)
 
     def with_fields(fields):
         args = list(leaves)
@@ -589,13 +585,7 @@ def _metrics_and_jacobian(layout, *, n_theta, solver):
         return tuple(e[k].astype(f.dtype) for k, f in enumerate(fields))
 
     if sol.series is not None:
-
-        def of(*fields):
-            return _every_metric(with_fields(fields), n_theta, solver)
-
-        return jax.vmap(lambda e: jax.jvp(of, tuple(fields), directions(e)), out_axes=(None, 0))(
-            basis
-        )
+        return values_and_jacobian(lambda lay: _every_metric(lay, n_theta, solver), layout)
     values, columns, recorded = {}, {}, []
     for group in _JACOBIAN_GROUPS:
         grid = _Revolution(layout, sol, rates, record=True)
@@ -663,46 +653,10 @@ def _metrics_of_layout(layout, n_theta, solver):
 
 
 def _metrics_of_layout_jvp(n_theta, solver, primals, tangents):
-    (layout,), (tangent,) = primals, tangents
-    leaves, tree = jax.tree_util.tree_flatten(layout)
-    if any(jnp.ndim(leaf) for leaf in leaves):  # array fields (outside the public API): plain JVP
-        return jax.jvp(lambda lay: _every_metric(lay, n_theta, solver), (layout,), (tangent,))
-    if any(isinstance(leaf, jax.core.Tracer) for leaf in leaves):
-        out, columns = _metrics_and_jacobian(layout, n_theta=n_theta, solver=solver)
-    else:  # an eager derivative: the plain call's compiled program, not a partially evaluated copy
-        with _EVAL_CONTEXT():
-            out, columns = _metrics_and_jacobian(layout, n_theta=n_theta, solver=solver)
-    t_leaves = tree.flatten_up_to(tangent)
-    moving = _differentiable(layout)
-    if not moving:
-        return out, jax.tree_util.tree_map(_zero_tangent, out)
-    dtype = jnp.result_type(*(leaves[i] for i in moving))
-    weights = jnp.stack(
-        [
-            jnp.zeros((), dtype) if isinstance(t_leaves[i], SymbolicZero) else t_leaves[i]
-            for i in moving
-        ]
-    ).astype(dtype)
-
-    def combine(value, column):
-        if not jnp.issubdtype(value.dtype, jnp.inexact):
-            return _zero_tangent(value)
-        return jnp.tensordot(weights.astype(column.dtype), column, axes=1)
-
-    return out, jax.tree_util.tree_map(combine, out, columns)
-
-
-# Concrete primals reach a JVP rule under the derivative's own trace (partial evaluation), where
-# a jitted call is compiled anew as its "known" part; evaluated outside that trace it reuses the
-# plain call's program. JAX has no public spelling of this context: without it (another JAX
-# version), the derivative compiles its own copy, as before, and the results are the same.
-_EVAL_CONTEXT = getattr(jax._src.core, "eval_context", contextlib.nullcontext)
-
-
-def _zero_tangent(value):
-    if jnp.issubdtype(jnp.result_type(value), jnp.inexact):
-        return jnp.zeros_like(value)
-    return np.zeros(jnp.shape(value), jax.dtypes.float0)
+    if any(jnp.ndim(leaf) for leaf in jax.tree_util.tree_leaves(primals)):  # array fields
+        return plain_jvp(lambda lay: _every_metric(lay, n_theta, solver), primals, tangents)
+    with_jacobian = functools.partial(_metrics_and_jacobian, n_theta=n_theta, solver=solver)
+    return jvp_from_jacobian(with_jacobian, primals, tangents)
 
 
 _metrics_of_layout.defjvp(_metrics_of_layout_jvp, symbolic_zeros=True)
