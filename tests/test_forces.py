@@ -299,16 +299,21 @@ def test_without_torque_no_force_and_no_failure():
 @pytest.mark.parametrize("name", ["gaf_rms", "gaf_third_order", "complementary_torque_steady"])
 def test_an_amplitudes_torque_derivative_is_its_slope_and_zero_at_no_torque(name):
     """The amplitudes are norms, homogeneous of degree 1 in T: their T-derivative is q(T)/T for
-    T > 0; at T = 0 (the kink of |T|) it is 0, finite, not NaN (the documented subgradient)."""
+    T > 0; at T = 0 (the kink of |T|) it is 0, finite, not NaN (the documented subgradient).
+    An eager derivative runs the program of the values and their Jacobian, compiled at top
+    level for latency once for every quantity and torque."""
 
     def amplitude(torque):
         inputs = forces.ForceInputs(torque, GREASE_A)
         return getattr(forces.forces_halfshaft(CASE_N, inputs, 120), name)
 
+    program = forces._forces_halfshaft.with_jacobian.latency_bound
+    before = program._cache_size()
     with jax.enable_x64(True):
         at_zero = float(jax.grad(amplitude)(0.0))
         slope = float(jax.grad(amplitude)(1000.0))
         value = float(amplitude(1000.0))
+    assert 1 <= program._cache_size() <= before + 1
     assert at_zero == 0.0
     assert value > 0 and slope == pytest.approx(value / 1000.0, rel=1e-9)
 

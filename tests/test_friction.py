@@ -194,10 +194,12 @@ def test_an_eager_gaf_derivative_runs_the_jacobian_program_and_equals_reverse_mo
 
     def plain(lay, torque, p):  # the function itself, reverse mode through the solve
         inputs = friction.GAFInputs(torque, p, model)
-        out = friction._gaf_over_revolution(lay, inputs, 60, solvers.resolve("newton"))
+        out = friction._gaf_over_revolution(
+            lay, inputs, n_theta=60, solver=solvers.resolve("newton")
+        )
         return out.third_order, out.force
 
-    program = friction._gaf_and_jacobian.latency_bound
+    program = friction._gaf_halfshaft.with_jacobian.latency_bound
     before = program._cache_size()
     got = jax.grad(lambda *a: gaf(*a).third_order, argnums=(0, 1, 2))(layout, 900.0, params)
     forward = jax.jacfwd(lambda *a: gaf(*a).force, argnums=(0, 1, 2))(layout, 900.0, params)

@@ -12,11 +12,14 @@ program, called at top level, is compiled for latency (``tripodjax._compile``).
 """
 
 import contextlib
+import functools
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jax.custom_derivatives import SymbolicZero
+
+from tripodjax._compile import latency_bound_at_top_level
 
 
 def differentiable(leaves):
@@ -101,3 +104,37 @@ def jvp_from_jacobian(with_jacobian, primals, tangents):
         return jnp.tensordot(weights.astype(column.dtype), column, axes=1)
 
     return out, jax.tree_util.tree_map(combine, out, columns)
+
+
+def differentiated_by_jacobian(fun, static_argnames):
+    """``fun(*args, **static)`` (``static_argnames`` by keyword) as a program compiled for
+    latency at top level, whose derivatives come from a second one of its values and Jacobian
+    w.r.t. the floating-point leaves of ``args`` (one number each; array leaves, outside the
+    public API, take a plain JVP). ``.plain`` and ``.with_jacobian``: the two programs."""
+    plain = latency_bound_at_top_level(fun, static_argnames=static_argnames)
+
+    def both(*args, **static):
+        return values_and_jacobian(functools.partial(fun, **static), *args)
+
+    both.__name__ = both.__qualname__ = f"{fun.__name__}_and_jacobian"  # the program's name
+    with_jacobian = latency_bound_at_top_level(both, static_argnames=static_argnames)
+
+    @functools.partial(jax.custom_jvp, nondiff_argnums=(0,))
+    def differentiable(static, *args):
+        return plain(*args, **dict(static))
+
+    def rule(static, primals, tangents):
+        if any(jnp.ndim(leaf) for leaf in jax.tree_util.tree_leaves(primals)):
+            return plain_jvp(functools.partial(fun, **dict(static)), primals, tangents)
+        return jvp_from_jacobian(
+            functools.partial(with_jacobian, **dict(static)), primals, tangents
+        )
+
+    differentiable.defjvp(rule, symbolic_zeros=True)
+
+    @functools.wraps(fun)
+    def call(*args, **static):
+        return differentiable(tuple(sorted(static.items())), *args)
+
+    call.plain, call.with_jacobian = plain, with_jacobian
+    return call

@@ -27,7 +27,6 @@ Units: torque N·m, R mm (GAF = 1000 T_d Σ μ / (3 R) in N; twice that printed)
 """
 
 import dataclasses
-import functools
 import math
 from typing import Any
 
@@ -46,8 +45,7 @@ from tripodjax._checks import (
     check_working_angle,
     checked_pytree_dataclass,
 )
-from tripodjax._compile import latency_bound_at_top_level
-from tripodjax._derivatives import jvp_from_jacobian, plain_jvp, values_and_jacobian
+from tripodjax._derivatives import differentiated_by_jacobian
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.halfshaft import HalfshaftSolution
 from tripodjax.kinematics import _check_n_theta, revolution
@@ -541,41 +539,17 @@ def gaf_halfshaft(
     _check_model(model, width, factor)
     solver = solvers.resolve_legacy(solver, fidelity)  # fidelity: the older spelling
     n_theta = _check_n_theta(n_theta)
-    return _gaf_of_layout(layout, GAFInputs(torque, params, model, width, factor), n_theta, solver)
+    inputs = GAFInputs(torque, params, model, width, factor)
+    return _gaf_halfshaft(layout, inputs, n_theta=n_theta, solver=solver)
 
 
-def _gaf_over_revolution(layout, inputs, n_theta, solver):
+def _gaf_over_revolution(layout, inputs, *, n_theta, solver):
     sol, rates = revolution(layout, n_theta, solver, with_rates=True)
     return gaf_from_revolution(layout, sol, rates, inputs)
 
 
-@functools.partial(jax.custom_jvp, nondiff_argnums=(2, 3))
-def _gaf_of_layout(layout, inputs, n_theta, solver):
-    """The GAF of one layout; derivatives from its Jacobian w.r.t. the layout and the inputs'
-    numbers (``tripodjax._derivatives``): an eager ``jax.grad`` compiles one program for
-    latency, where reverse mode through the revolution compiled two with XLA's defaults
-    (notebook 02's elasticities: 6.3 → 2.1 s, 2-core AMD EPYC)."""
-    return _gaf_halfshaft(layout, inputs, n_theta=n_theta, solver=solver)
-
-
-@functools.partial(latency_bound_at_top_level, static_argnames=("n_theta", "solver"))
-def _gaf_halfshaft(layout, inputs, *, n_theta, solver):
-    return _gaf_over_revolution(layout, inputs, n_theta, solver)
-
-
-@functools.partial(latency_bound_at_top_level, static_argnames=("n_theta", "solver"))
-def _gaf_and_jacobian(layout, inputs, *, n_theta, solver):
-    return values_and_jacobian(
-        functools.partial(_gaf_over_revolution, n_theta=n_theta, solver=solver), layout, inputs
-    )
-
-
-def _gaf_of_layout_jvp(n_theta, solver, primals, tangents):
-    if any(jnp.ndim(leaf) for leaf in jax.tree_util.tree_leaves(primals)):  # array fields
-        of = functools.partial(_gaf_over_revolution, n_theta=n_theta, solver=solver)
-        return plain_jvp(of, primals, tangents)
-    with_jacobian = functools.partial(_gaf_and_jacobian, n_theta=n_theta, solver=solver)
-    return jvp_from_jacobian(with_jacobian, primals, tangents)
-
-
-_gaf_of_layout.defjvp(_gaf_of_layout_jvp, symbolic_zeros=True)
+# Derivatives from the Jacobian w.r.t. the layout and the inputs' numbers
+# (``tripodjax._derivatives``): an eager ``jax.grad`` compiles one program for latency, where
+# reverse mode through the revolution compiled two with XLA's defaults (notebook 02's
+# elasticities: 6.3–6.9 → 2.1–2.4 s, 2-core AMD EPYC).
+_gaf_halfshaft = differentiated_by_jacobian(_gaf_over_revolution, ("n_theta", "solver"))
