@@ -120,7 +120,7 @@ def differentiated_by_jacobian(fun, static_argnames):
     with_jacobian = latency_bound_at_top_level(both, static_argnames=static_argnames)
 
     @functools.partial(jax.custom_jvp, nondiff_argnums=(0,))
-    def differentiable(static, *args):
+    def with_rule(static, *args):
         return plain(*args, **dict(static))
 
     def rule(static, primals, tangents):
@@ -130,11 +130,11 @@ def differentiated_by_jacobian(fun, static_argnames):
             functools.partial(with_jacobian, **dict(static)), primals, tangents
         )
 
-    differentiable.defjvp(rule, symbolic_zeros=True)
+    with_rule.defjvp(rule, symbolic_zeros=True)
 
     @functools.wraps(fun)
     def call(*args, **static):
-        return differentiable(tuple(sorted(static.items())), *args)
+        return with_rule(tuple(sorted(static.items())), *args)
 
     call.plain, call.with_jacobian = plain, with_jacobian
     return call
