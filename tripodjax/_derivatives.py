@@ -66,8 +66,7 @@ def zero_tangent(value):
 
 
 def plain_jvp(fun, primals, tangents):
-    """``jax.jvp(fun, primals, tangents)`` in a rule with symbolic zeros (instantiated): for
-    array fields, outside the public API, where a leaf's tangent is not one number."""
+    """``jax.jvp(fun, primals, tangents)`` in a rule with symbolic zeros (instantiated)."""
     leaves, tree = jax.tree_util.tree_flatten(primals)
     t_leaves = [
         zero_tangent(leaf) if isinstance(t, SymbolicZero) else t
@@ -76,11 +75,14 @@ def plain_jvp(fun, primals, tangents):
     return jax.jvp(fun, primals, tree.unflatten(t_leaves))
 
 
-def jvp_from_jacobian(with_jacobian, primals, tangents):
-    """A ``jax.custom_jvp`` rule (``symbolic_zeros=True``): ``with_jacobian(*primals)`` returns
-    the values and their Jacobian as ``values_and_jacobian`` does; the output tangent is the
-    Jacobian's product with the primals' tangents (symbolic zeros count as 0)."""
+def jvp_from_jacobian(fun, with_jacobian, primals, tangents):
+    """A ``jax.custom_jvp`` rule (``symbolic_zeros=True``) of ``fun``: ``with_jacobian(*primals)``
+    returns its values and their Jacobian as ``values_and_jacobian`` does; the output tangent is
+    the Jacobian's product with the primals' tangents (symbolic zeros count as 0). Array leaves,
+    outside the public API, where a leaf's tangent is not one number: ``fun``'s plain JVP."""
     leaves, tree = jax.tree_util.tree_flatten(primals)
+    if any(jnp.ndim(leaf) for leaf in leaves):
+        return plain_jvp(fun, primals, tangents)
     if any(isinstance(leaf, jax.core.Tracer) for leaf in leaves):
         out, columns = with_jacobian(*primals)
     else:  # an eager derivative: the top-level program, not a partially evaluated copy
@@ -109,8 +111,8 @@ def jvp_from_jacobian(with_jacobian, primals, tangents):
 def differentiated_by_jacobian(fun, static_argnames):
     """``fun(*args, **static)`` (``static_argnames`` by keyword) as a program compiled for
     latency at top level, whose derivatives come from a second one of its values and Jacobian
-    w.r.t. the floating-point leaves of ``args`` (one number each; array leaves, outside the
-    public API, take a plain JVP). ``.plain`` and ``.with_jacobian``: the two programs."""
+    w.r.t. the floating-point leaves of ``args`` (``jvp_from_jacobian``). ``.plain`` and
+    ``.with_jacobian``: the two programs."""
     plain = latency_bound_at_top_level(fun, static_argnames=static_argnames)
 
     def both(*args, **static):
@@ -124,10 +126,11 @@ def differentiated_by_jacobian(fun, static_argnames):
         return plain(*args, **dict(static))
 
     def rule(static, primals, tangents):
-        if any(jnp.ndim(leaf) for leaf in jax.tree_util.tree_leaves(primals)):
-            return plain_jvp(functools.partial(fun, **dict(static)), primals, tangents)
         return jvp_from_jacobian(
-            functools.partial(with_jacobian, **dict(static)), primals, tangents
+            functools.partial(fun, **dict(static)),
+            functools.partial(with_jacobian, **dict(static)),
+            primals,
+            tangents,
         )
 
     with_rule.defjvp(rule, symbolic_zeros=True)

@@ -713,6 +713,6 @@ def _forces_over_revolution(layout, inputs, *, n_theta, solver):
 
 # Derivatives from the Jacobian w.r.t. the layout and the inputs' numbers
 # (``tripodjax._derivatives``): an eager ``jax.grad`` of the seed's case N compiles one program
-# for latency, 16.7 → 4.4 s, where reverse mode through the revolution compiled two with XLA's
+# for latency, 16.7 → 5.1 s, where reverse mode through the revolution compiled two with XLA's
 # defaults (2-core AMD EPYC, fresh processes).
 _forces_halfshaft = differentiated_by_jacobian(_forces_over_revolution, ("n_theta", "solver"))

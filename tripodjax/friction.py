@@ -530,8 +530,8 @@ def gaf_halfshaft(
     Differentiable w.r.t. the layout (R, l, γ0), the torque and every
     FrictionParams field, with derivatives of the solve from the implicit
     function theorem; a derivative (``jax.grad``, ``jax.jacfwd``) runs one
-    program of the values and their Jacobian, compiled once. ``factor``: ``"statics"`` (default) or ``"printed"``, see
-    [`gaf`][tripodjax.friction.gaf].
+    program of the values and their Jacobian, compiled once. ``factor``:
+    ``"statics"`` (default) or ``"printed"``, see [`gaf`][tripodjax.friction.gaf].
     """
     check_layout(layout, one=True)
     _check_load(torque, layout.R)
@@ -551,5 +551,5 @@ def _gaf_over_revolution(layout, inputs, *, n_theta, solver):
 # Derivatives from the Jacobian w.r.t. the layout and the inputs' numbers
 # (``tripodjax._derivatives``): an eager ``jax.grad`` compiles one program for latency, where
 # reverse mode through the revolution compiled two with XLA's defaults (notebook 02's
-# elasticities: 6.3–6.9 → 2.1–2.4 s, 2-core AMD EPYC).
+# elasticities: 6.3–6.9 → 2.1–2.5 s, 2-core AMD EPYC).
 _gaf_halfshaft = differentiated_by_jacobian(_gaf_over_revolution, ("n_theta", "solver"))

@@ -27,12 +27,7 @@ from jax.typing import ArrayLike, DTypeLike
 from tripodjax import joint, solvers
 from tripodjax._checks import check_flag
 from tripodjax._compile import latency_bound_at_top_level
-from tripodjax._derivatives import (
-    differentiable,
-    jvp_from_jacobian,
-    plain_jvp,
-    values_and_jacobian,
-)
+from tripodjax._derivatives import differentiable, jvp_from_jacobian, values_and_jacobian
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.halfshaft import (
     HalfshaftSolution,
@@ -653,10 +648,12 @@ def _metrics_of_layout(layout, n_theta, solver):
 
 
 def _metrics_of_layout_jvp(n_theta, solver, primals, tangents):
-    if any(jnp.ndim(leaf) for leaf in jax.tree_util.tree_leaves(primals)):  # array fields
-        return plain_jvp(lambda lay: _every_metric(lay, n_theta, solver), primals, tangents)
-    with_jacobian = functools.partial(_metrics_and_jacobian, n_theta=n_theta, solver=solver)
-    return jvp_from_jacobian(with_jacobian, primals, tangents)
+    return jvp_from_jacobian(
+        lambda lay: _every_metric(lay, n_theta, solver),
+        functools.partial(_metrics_and_jacobian, n_theta=n_theta, solver=solver),
+        primals,
+        tangents,
+    )
 
 
 _metrics_of_layout.defjvp(_metrics_of_layout_jvp, symbolic_zeros=True)
