@@ -653,6 +653,7 @@ _FORCE_ROWS = (
     ("complementary_torque_third_order_Nm", "complementary torque, 3rd order", "N·m"),
     ("complementary_torque_sixth_order_Nm", "complementary torque, 6th order", "N·m"),
     ("roller_load_ratio", "largest roller load / (T/3R)", "–"),
+    ("friction_power_W", "friction power (running case)", "W"),
 )
 
 
@@ -665,7 +666,8 @@ def _forces(report):
     notes = [
         f"The force model (quasi-static roller forces on the exact kinematics, seed §3.1) at "
         f"T = {fmt(cell(forces.get('torque_Nm')))} N·m (T/3R = "
-        f"{fmt(cell(forces.get('nominal_roller_load_N')))} N per roller); LTS at a plunge of "
+        f"{fmt(cell(forces.get('nominal_roller_load_N')))} N per roller), running at "
+        f"{fmt(cell(forces.get('speed_rpm')))} rpm; LTS at a plunge of "
         f"{fmt(cell(forces.get('plunge_speed_mm_s')))} mm/s and "
         f"{fmt(cell(forces.get('lts_speed_rpm')))} rpm; trunnion μ "
         f"{fmt(cell(forces.get('mu_trunnion')))}, contact angle "

@@ -211,6 +211,7 @@ def force_inputs(values, params):
         params,
         mu_trunnion=f["mu_trunnion"],
         contact_angle=f["contact_angle"],
+        speed=f["speed_rpm"] * rpm,
         plunge_speed=f["plunge_speed_mm_s"],
         lts_speed=f["lts_speed_rpm"] * rpm,
     )
@@ -899,6 +900,7 @@ FORCE_REPORT_KEYS = {
     "complementary_torque_third_order": "complementary_torque_third_order_Nm",
     "complementary_torque_sixth_order": "complementary_torque_sixth_order_Nm",
     "roller_load_ratio": "roller_load_ratio",
+    "friction_power": "friction_power_W",
 }
 
 
@@ -907,7 +909,9 @@ def _forces_report(structure, values, x):
     design = full_design(structure, values, x)
     layout = Layout(design["R"], design["l"], design["gamma0_deg"])
     params = friction.GREASE_A.replace(lam=design["lam"], mu_slp=design["mu_slp"])
-    sol, rates = revolution(layout, structure.n_theta, structure.fidelity, with_rates=True)
+    # At least the force model's minimum of angles: a spec's coarser grid would alias its orders.
+    n_theta = max(structure.n_theta, forces.MIN_N_THETA)
+    sol, rates = revolution(layout, n_theta, structure.fidelity, with_rates=True)
     names = (*FORCE_REPORT_KEYS, "result")
     return forces.force_quantities(layout, sol, rates, force_inputs(values, params), names)
 
@@ -918,11 +922,12 @@ def forces_report(spec: Spec, design: Mapping[str, float]) -> dict:
     The force model ([`tripodjax.forces`][tripodjax.forces], seed §3.1) of the design's
     halfshaft over a revolution at ``loads.gaf_torque``, with the spec's ``[forces]`` and
     friction, at the spec's solver level: ``{"torque_Nm", "nominal_roller_load_N"`` (T/3R),
-    ``"plunge_speed_mm_s", "lts_speed_rpm", "mu_trunnion", "contact_angle_deg"``, the
+    ``"speed_rpm", "plunge_speed_mm_s", "lts_speed_rpm", "mu_trunnion", "contact_angle_deg"``, the
     GAF (``gaf_rms_N``, ``gaf_peak_N``, ``gaf_third_order_N``, ``gaf_sixth_order_N``,
     ``gaf_ninth_order_N``), the LTS (``lts_mean_N``, ``lts_ripple_N``), the complementary
     torque (``complementary_torque_steady_Nm``, ``..._third_order_Nm``,
-    ``..._sixth_order_Nm``), ``roller_load_ratio`` and ``result`` (a RESULTS name)}``.
+    ``..._sixth_order_Nm``), ``roller_load_ratio``, ``friction_power_W`` and ``result`` (a
+    RESULTS name)}``. The revolution has at least ``tripodjax.forces.MIN_N_THETA`` angles.
     """
     structure = check_spec(spec).structure
     values, x = design_values(spec, design)
@@ -934,6 +939,7 @@ def forces_report(spec: Spec, design: Mapping[str, float]) -> dict:
         return {
             "torque_Nm": torque,
             "nominal_roller_load_N": 1000.0 * torque / (3.0 * R),
+            "speed_rpm": float(f["speed_rpm"]),
             "plunge_speed_mm_s": float(f["plunge_speed_mm_s"]),
             "lts_speed_rpm": float(f["lts_speed_rpm"]),
             "mu_trunnion": float(f["mu_trunnion"]),

@@ -117,7 +117,9 @@ gaf_model = "stroke"   # "stroke" (no GAF at γ = 0), "printed" (the seed's 3.2.
 [forces]
 # The force model (tripodjax.forces: quasi-static roller forces on the exact kinematics, §3.1) at
 # loads.gaf_torque with friction.mu_slp and friction.lam: the quantities lts, lts_ripple,
-# complementary_torque and roller_load_ratio, and the GAF when friction.gaf_model = "forces".
+# complementary_torque (and its _third_order, _sixth_order), roller_load_ratio and
+# friction_power, and the GAF when friction.gaf_model = "forces".
+speed_rpm = 1000.0         # shaft speed of the running case [rpm] (sets friction_power alone; not 0)
 mu_trunnion = 0.0          # roller–trunnion sliding friction (0: needle bearings)
 contact_angle_deg = 0.0    # contact angle of the roller on its flank [deg] (0: flat flanks)
 plunge_speed_mm_s = 10.0   # plunge speed of the LTS test [mm/s] (> 0 into the pot, < 0 out; not 0)
@@ -246,9 +248,21 @@ QUANTITIES = {
         "steady complementary torque, the bending moment of the rollers on the housing, at "
         "loads.gaf_torque (force model, §3.1)",
     ),
+    "complementary_torque_third_order": (
+        "N·m",
+        "amplitude of the complementary torque's order 3 at loads.gaf_torque (force model)",
+    ),
+    "complementary_torque_sixth_order": (
+        "N·m",
+        "amplitude of the complementary torque's order 6 at loads.gaf_torque (force model)",
+    ),
     "roller_load_ratio": (
         "–",
         "largest roller normal force over a revolution / (T/3R) at loads.gaf_torque (force model)",
+    ),
+    "friction_power": (
+        "W",
+        "mean power dissipated by friction at loads.gaf_torque and forces.speed_rpm (force model)",
     ),
     "outer_diameter": ("mm", "outer-diameter proxy 2R + d"),
     "static_capacity": ("N·m", "static torque capacity M_s at P_s (§4.2)"),
@@ -288,7 +302,10 @@ FORCE_QUANTITIES = {
     "lts": "lts_mean",
     "lts_ripple": "lts_ripple",
     "complementary_torque": "complementary_torque_steady",
+    "complementary_torque_third_order": "complementary_torque_third_order",
+    "complementary_torque_sixth_order": "complementary_torque_sixth_order",
     "roller_load_ratio": "roller_load_ratio",
+    "friction_power": "friction_power",
 }
 # The quantities computed from the halfshaft's revolution (a kinematic solve per design).
 REVOLUTION_QUANTITIES = KINEMATIC_QUANTITIES + GAF_QUANTITIES + tuple(FORCE_QUANTITIES)
@@ -861,6 +878,30 @@ def _constraints(table):
     return tuple(names), values, chances
 
 
+def _check_force_model(structure, values):
+    """SpecError where the objective or a constraint takes a quantity of the force model
+    (tripodjax.forces) and loads.gaf_torque is 0 (its roller loads over T/3R are 0/0, its
+    forces 0) or solver.n_theta is below the force model's minimum (its orders would alias)."""
+    from tripodjax.forces import MIN_N_THETA
+
+    used = [q for q in FORCE_QUANTITIES if q in structure.needs]
+    if structure.gaf_model == "forces":
+        used += [q for q in GAF_QUANTITIES if q in structure.needs]
+    if not used:
+        return
+    if not values["loads"]["gaf_torque"] > 0:
+        raise SpecError(
+            f"loads.gaf_torque = {values['loads']['gaf_torque']:g} is not allowed with the force "
+            f"model's {used[0]} in the objective or the constraints: > 0 N·m (the torque at "
+            "which the forces are judged)"
+        )
+    if structure.n_theta < MIN_N_THETA:
+        raise SpecError(
+            f"solver.n_theta = {structure.n_theta} is not allowed with the force model's "
+            f"{used[0]}: at least {MIN_N_THETA} (its orders 3, 6 and 9 would alias)"
+        )
+
+
 def _no_halfshaft(free, terms, constraints):
     """SpecError when a spec without a vehicle frees a [shaft] entry or uses the halfshaft's
     quantities: its checks need the vehicle's load cycles."""
@@ -1244,6 +1285,7 @@ def _check(table):
         outboard_reading=outboard_reading,
         outboard_conditions=outboard_conditions,
     )
+    _check_force_model(structure, v)
     if not structure.free:
         raise SpecError(
             f"bounds gives no free variable; give an interval for at least one of {', '.join(VARIABLES)} "
@@ -1384,8 +1426,15 @@ def _forces(table):
             "forces.plunge_speed_mm_s = 0.0 is not allowed: a finite speed, not 0 (> 0 into the "
             "pot, < 0 out: the LTS opposes a plunge)"
         )
+    speed = _number(table, "forces", "speed_rpm", unit=" rpm")
+    if speed == 0:
+        raise SpecError(
+            "forces.speed_rpm = 0.0 is not allowed: a finite speed, not 0 (the running case needs "
+            "a direction; its size sets the friction power alone)"
+        )
     angle = _number(table, "forces", "contact_angle_deg", 0.0, 89.999, unit="°")
     return {
+        "speed_rpm": speed,
         "mu_trunnion": _number(table, "forces", "mu_trunnion", 0.0),
         "contact_angle": math.radians(angle),
         "plunge_speed_mm_s": plunge,

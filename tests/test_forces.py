@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import reference
 
-from tripodjax import Layout, forces, friction, seed_case
+from tripodjax import Layout, forces, friction, seed_case, solvers
 from tripodjax._compile import latency_bound_jit
 from tripodjax.results import RESULTS
 
@@ -417,6 +417,34 @@ def test_float32_against_float64(float32_default):
         ), name
 
 
+# Each small quantity against the one it rides on (a difference of large terms holds float32's
+# roundoff of that one, not of itself).
+SCALE = {
+    "gaf_peak": "gaf_rms",
+    "gaf_third_order": "gaf_rms",
+    "gaf_sixth_order": "gaf_rms",
+    "gaf_ninth_order": "gaf_rms",
+    "complementary_torque_third_order": "complementary_torque_steady",
+    "complementary_torque_sixth_order": "complementary_torque_steady",
+    "lts_ripple": "lts_mean",
+}
+
+
+@pytest.mark.parametrize("degrees", [20.0, 1.0])
+def test_float32_holds_every_quantity_to_roundoff_of_its_scale(float32_default, degrees):
+    """docs/physics.md: within 6e-7 of float64, each quantity against the one it rides on
+    (measured; asserted at 2e-6, 16 float32 ulps), down to γ0 = 1°."""
+    inputs = forces.ForceInputs(1000.0, GREASE_A)
+    gamma0 = math.radians(degrees)
+    f32 = _quantities(Layout(np.float32(25.0), np.float32(500.0), np.float32(gamma0)), inputs)
+    with jax.enable_x64(True):
+        f64 = _quantities(Layout(25.0, 500.0, gamma0), inputs)
+    for name in forces.QUANTITIES:
+        scale = abs(float(getattr(f64, SCALE.get(name, name))))
+        error = abs(float(getattr(f32, name)) - float(getattr(f64, name)))
+        assert error <= 2e-6 * scale, name
+
+
 NAMES = ("gaf_third_order", "gaf_rms", "lts_mean", "complementary_torque_steady",
          "complementary_torque_sixth_order", "roller_load_ratio", "friction_power")  # fmt: skip
 
@@ -525,3 +553,99 @@ def test_inside_a_users_jit_equals_the_top_level_call():
         lambda layout: friction.gaf_halfshaft(layout, 500.0, n_theta=120).rms,
     ):
         assert float(jax.jit(quantity)(CASE_N)) == pytest.approx(float(quantity(CASE_N)), rel=1e-13)
+
+
+def test_a_roller_not_pressed_onto_its_track_is_outside_the_model():
+    """N_k < 0 (trunnion friction that locks the joint, a roller lifting off) is no answer of
+    the model: ``outside_validity`` at each such angle and over the revolution, never
+    ``successful``; the default joint's rollers are pressed at every angle."""
+    locked = forces.forces_halfshaft(CASE_N, forces.ForceInputs(1000.0, mu_trunnion=0.6), 120)
+    negative = np.any(np.asarray(locked.running.normal) < 0, axis=-1)
+    assert negative.any()
+    codes = np.asarray(locked.running.result)
+    np.testing.assert_array_equal(codes == RESULTS.outside_validity, negative)
+    assert int(locked.result) == RESULTS.outside_validity
+    pressed = forces.forces_halfshaft(CASE_N, forces.ForceInputs(1000.0), 120)
+    assert np.all(np.asarray(pressed.running.normal) > 0)
+    assert np.all(np.asarray(pressed.lts.normal) > 0)
+    assert int(pressed.result) == RESULTS.successful
+    assert np.all(np.asarray(pressed.running.result) == RESULTS.successful)
+
+
+@pytest.mark.parametrize(
+    "field, value, good",
+    [
+        ("torque", -5.0, 10.0),
+        ("speed", 0.0, 1.0),
+        ("plunge_speed", 0.0, 1.0),
+        ("mu_trunnion", -0.1, 0.01),
+    ],
+)
+def test_an_input_outside_its_domain_inside_jit_is_flagged(field, value, good):
+    """Under jit the fields are not checked at construction: one outside its domain gives
+    ``outside_validity`` (a negative torque, a speed of 0 that leaves no friction direction),
+    not plausible numbers marked ``successful``."""
+
+    def run(x):
+        fields = {"torque": 1000.0, field: x}
+        return forces.forces_halfshaft(CASE_N, forces.ForceInputs(**fields), 120)
+
+    assert int(jax.jit(run)(value).result) == RESULTS.outside_validity
+    assert int(jax.jit(run)(good).result) == RESULTS.successful
+
+
+def test_roller_forces_carry_the_kinematics_code_at_each_angle():
+    hard = Layout(50.0, 250.0, math.radians(45.0))
+    inputs = forces.ForceInputs(1000.0)
+    capped = forces.roller_forces(
+        hard, jnp.array([0.5, 0.7]), inputs, solver=solvers.Newton(max_steps=1)
+    )
+    np.testing.assert_array_equal(capped.result, [RESULTS.max_steps_reached] * 2)
+    listed = forces.roller_forces(CASE_N, [0.1, 0.2], inputs)  # a list of angles is taken
+    assert listed.normal.shape == (2, 3)
+    np.testing.assert_array_equal(listed.result, [RESULTS.successful] * 2)
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (
+            lambda: forces.forces_halfshaft(CASE_N, forces.ForceInputs(jnp.array([1.0, 2.0]))),
+            "inputs.torque has shape (2,); allowed: one number",
+        ),
+        (
+            lambda: forces.roller_forces(
+                Layout(np.array([25.0, 30.0]), 500.0, 0.3), np.zeros(3), forces.ForceInputs(1.0)
+            ),
+            "the layout's fields (shape (2,)) and theta (shape (3,)) do not broadcast",
+        ),
+        (
+            lambda: forces.forces_halfshaft(CASE_N, forces.ForceInputs(1.0), 12),
+            "n_theta = 12 is not allowed for the force quantities: at least 24",
+        ),
+        (
+            lambda: forces.force_quantities(CASE_N, None, None, forces.ForceInputs(1.0), ("lts",)),
+            "force quantities ['lts'] are not known; allowed: gaf_rms",
+        ),
+        (
+            lambda: forces.force_quantities(CASE_N, None, None, forces.ForceInputs(1.0), "gaf_rms"),
+            "names = 'gaf_rms' is one string",
+        ),
+        (
+            lambda: forces.force_quantities(CASE_N, None, None, 1000.0, ("gaf_rms",)),
+            "inputs = 1000.0 is not allowed; allowed: a ForceInputs",
+        ),
+    ],
+    ids=["array-field", "shapes", "n_theta", "unknown-name", "one-string", "inputs-type"],
+)
+def test_bad_calls_say_what_is_wrong_in_one_line(call, message):
+    with pytest.raises((ValueError, TypeError), match=re.escape(message)):
+        call()
+
+
+def test_a_sweep_of_force_outputs_needs_enough_angles():
+    import tripodjax as tj
+
+    layouts = tj.Layout(np.array([25.0, 26.0]), np.array([500.0, 500.0]), np.array([0.3, 0.3]))
+    with pytest.raises(ValueError, match=re.escape("n_theta = 18 is not allowed for the force")):
+        tj.sweep(layouts, n_theta=18, outputs=("lts_mean",), forces=forces.ForceInputs(1000.0))

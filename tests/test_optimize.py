@@ -1,6 +1,7 @@
 """The design problem, the optimiser, its sensitivities and the catalogue choice."""
 
 import math
+import re
 
 import jax
 import numpy as np
@@ -762,3 +763,48 @@ def test_multipliers_satisfy_stationarity_at_a_vertex_and_on_bounds():
     assert np.all(x[on_bound] - lower[on_bound] <= tolerance * width[on_bound])
     assert np.all(lagrangian[on_bound] > 0)  # the area would shrink below the bound
     assert np.max(np.abs(lagrangian[~on_bound])) <= 2 * tolerance
+
+
+def test_friction_power_and_the_complementary_torques_orders_are_quantities():
+    """friction_power (at forces.speed_rpm) and the complementary torque's orders 3 and 6, as an
+    objective term and constraints, equal the force model called directly."""
+    spec = optimize.parse_spec(
+        "[objective]\nw_friction_power = 0.1\nfriction_power_ref = 50.0\n"
+        "[constraints]\nmax_complementary_torque_third_order = 1e3\n"
+        "max_complementary_torque_sixth_order = 1e3\n[forces]\nspeed_rpm = 600.0\n"
+    )
+    out = optimize.evaluate(spec, {"R": 24.0, "d_roller": 36.0})
+    with jax.enable_x64(True):
+        inputs = ForceInputs(1000.0, friction.GREASE_A, speed=600.0 * math.pi / 30.0)
+        one = forces.forces_halfshaft(
+            Layout(24.0, 500.0, math.radians(20.0)),
+            inputs,
+            n_theta=spec.structure.n_theta,
+            solver=spec.structure.fidelity,
+        )
+    q = out["quantities"]
+    assert q["friction_power"] == pytest.approx(float(one.friction_power), rel=1e-10)
+    for order in ("third", "sixth"):
+        name = f"complementary_torque_{order}_order"
+        assert q[name] == pytest.approx(float(getattr(one, name)), rel=1e-10)
+    assert float(one.friction_power) > 0
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        (
+            "[constraints]\nmax_roller_load_ratio = 1.5\n[loads]\ngaf_torque = 0.0\n",
+            "loads.gaf_torque = 0 is not allowed with the force model's roller_load_ratio",
+        ),
+        (
+            "[constraints]\nmax_lts = 900.0\n[solver]\nn_theta = 18\n",
+            "solver.n_theta = 18 is not allowed with the force model's lts: at least 24",
+        ),
+        ("[forces]\nspeed_rpm = 0.0\n", "forces.speed_rpm = 0.0 is not allowed"),
+    ],
+    ids=["no-torque", "coarse-grid", "no-speed"],
+)
+def test_a_force_quantity_spec_without_torque_angles_or_speed_is_refused(text, message):
+    with pytest.raises(optimize.SpecError, match=re.escape(message)):
+        optimize.parse_spec(text)

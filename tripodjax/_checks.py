@@ -589,3 +589,12 @@ def checked_pytree_dataclass(cls: type[_T]) -> type[_T]:
 
     jax.tree_util.register_pytree_with_keys(cls, flatten_with_keys, unflatten, flatten)
     return cls
+
+
+def check_one_number(name: str, inputs: object, allowed: str) -> None:
+    """Every concrete field of ``inputs`` (a pytree) one number (shape ()); else one ValueError
+    naming the field and its shape, with ``allowed`` saying what to do instead."""
+    for path, leaf in jax.tree_util.tree_leaves_with_path(inputs):
+        if not isinstance(leaf, jax.core.Tracer) and np.ndim(leaf) != 0:
+            field = f"{name}.{jax.tree_util.keystr(path, simple=True, separator='.')}"
+            raise ValueError(f"{field} has shape {np.shape(leaf)}; allowed: {allowed}")

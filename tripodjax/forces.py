@@ -65,6 +65,7 @@ from tripodjax._checks import (
     check_instance,
     check_non_negative,
     check_nonzero,
+    check_one_number,
     check_positive,
     check_range,
     check_real,
@@ -95,6 +96,10 @@ RUNNING_QUANTITIES = (
 LTS_QUANTITIES = ("lts_mean", "lts_ripple")
 QUANTITIES = RUNNING_QUANTITIES + LTS_QUANTITIES
 MAX_CONTACT_ANGLE = 0.5 * math.pi
+MIN_N_THETA = 24
+"""Angles per revolution of the force quantities at least: 8 a period (2π/3), so that the
+orders 3, 6 and 9 (the period's harmonics 1–3) are told apart (6 a period would alias the
+9th order onto the steady part, 12 a turn the 9th onto the 3rd)."""
 
 
 @checked_pytree_dataclass
@@ -120,8 +125,9 @@ class ForceInputs:
             the idle case between LTS and GAF).
         width: width of the smooth signs, in units of the reference speed
             R|θ̇| + |v_p| [–], > 0 (default that of the stroke model).
-        transverse_x, transverse_y: force of the pot on the spider across the
-            pot axis, fixed frame [N], finite (default 0).
+        transverse_x: force of the pot on the spider across the pot axis, along
+            the fixed X [N], finite (default 0).
+        transverse_y: the same along the fixed Y [N], finite (default 0).
 
     A pytree: every field is a leaf (traced, differentiable); each is one number
     for one layout (``jax.vmap`` over a batch). Concrete fields are checked at
@@ -172,6 +178,12 @@ class RollerForces:
         power: power dissipated by friction at the tracks and trunnions [W], (...).
         slip: each roller's sliding speed at its track, v_k·b_k [mm/s], (..., 3).
         rolling: each roller's rolling speed, v_k·t_k [mm/s], (..., 3).
+        result: [`RESULTS`][tripodjax.results.RESULTS] code at each angle, (...): the
+            kinematics' solve, ``nonfinite`` where a force is not finite, and
+            ``outside_validity`` where a roller is not pressed onto its track (N_k < 0:
+            the rollers lift off, or friction locks the joint) or an input lies outside
+            its domain (see [`ForceInputs`][tripodjax.forces.ForceInputs]; checked where
+            traced).
     """
 
     normal: jax.Array
@@ -182,6 +194,7 @@ class RollerForces:
     power: jax.Array
     slip: jax.Array
     rolling: jax.Array
+    result: jax.Array
 
 
 # A roller's quantities have shape (3, ...): the rollers first, then the batch, elementwise
@@ -367,6 +380,8 @@ def _solve(R, kinematics, contact, inputs, speed, plunge):
         for m in (m_r * cos_k - m_t * sin_k, m_r * sin_k + m_t * cos_k, torque_arm)
     )
     loss = sliding * slip + resisting * rolling + trunnion * trunnion_speed
+    finite = jnp.all(jnp.isfinite(normal), axis=0)
+    lifted = jnp.any(normal < 0, axis=0)
     return RollerForces(
         normal=normal,
         radial=-kappa * normal,
@@ -376,6 +391,10 @@ def _solve(R, kinematics, contact, inputs, speed, plunge):
         power=total(loss) / 1000.0,
         slip=slip,
         rolling=rolling,
+        result=worst(
+            code_where(lifted, RESULTS.outside_validity, RESULTS.successful),
+            code_where(~finite, RESULTS.nonfinite, RESULTS.successful),
+        ),
     )
 
 
@@ -394,8 +413,48 @@ def _case_motion(inputs, case):
     return inputs.lts_speed, inputs.plunge_speed
 
 
-def _check_inputs(inputs):
+def _check_inputs(inputs, *, one_number=True):
     check_instance("inputs", inputs, ForceInputs, "a ForceInputs, e.g. ForceInputs(torque=500.0)")
+    if one_number:
+        allowed = "one number (jax.vmap over the layouts and the inputs for a batch)"
+        check_one_number("inputs", inputs, allowed)
+
+
+def _outside_domain(inputs, cases, dtype):
+    """Whether a field of ``inputs`` the ``cases`` use lies outside its domain (the ranges
+    `ForceInputs` checks where its fields are concrete; here, where they are traced)."""
+    value = {
+        name: jnp.asarray(getattr(inputs, name), dtype)
+        for name in ("torque", "mu_trunnion", "contact_angle", "width")
+    }
+    mu, lam = (jnp.asarray(x, dtype) for x in (inputs.params.mu_slp, inputs.params.lam))
+    # Comparisons false for NaN: a NaN input is ``nonfinite``, not outside the domain.
+    outside = (
+        (value["torque"] < 0)
+        | (value["mu_trunnion"] < 0)
+        | (value["contact_angle"] < 0)
+        | (value["contact_angle"] >= MAX_CONTACT_ANGLE)
+        | (value["width"] <= 0)
+        | (mu < 0)
+        | (lam < 0)
+    )
+    for case in cases:
+        speed, plunge = _case_motion(inputs, case)
+        moving = speed if case == "running" else plunge
+        outside |= jnp.asarray(moving, dtype) == 0
+    return outside
+
+
+def check_n_theta(n_theta, name="n_theta"):
+    """``n_theta`` of the force quantities: a multiple of 6 (as every revolution's) and at least
+    `MIN_N_THETA`; else one ValueError naming ``name``."""
+    n_theta = _check_n_theta(n_theta, name)
+    if n_theta < MIN_N_THETA:
+        raise ValueError(
+            f"{name} = {n_theta} is not allowed for the force quantities: at least {MIN_N_THETA} "
+            "(8 angles a period, so that the orders 3, 6 and 9 do not alias), e.g. 360"
+        )
+    return n_theta
 
 
 def roller_forces(
@@ -423,6 +482,17 @@ def roller_forces(
     """
     check_layout(layout)
     check_real("theta", theta)
+    theta = jnp.asarray(theta)
+    fields = (layout.R, layout.l, layout.gamma0)
+    shapes = {"layout": jnp.broadcast_shapes(*(jnp.shape(f) for f in fields)), "theta": theta.shape}
+    try:
+        jnp.broadcast_shapes(*shapes.values())
+    except ValueError:
+        raise ValueError(
+            f"the layout's fields (shape {shapes['layout']}) and theta (shape {shapes['theta']}) "
+            "do not broadcast together; allowed: a layout of one halfshaft (scalar fields) with "
+            "any theta, or fields that broadcast against theta"
+        ) from None
     _check_inputs(inputs)
     check_choice("case", case, CASES)
     return _roller_forces(layout, theta, inputs, solver=solvers.resolve(solver), case=case)
@@ -436,6 +506,9 @@ def _roller_forces(layout, theta, inputs, *, solver, case):
     fields = [jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0, theta)]
     shape = jnp.broadcast_shapes(*(a.shape for a in fields))
     flat = [jnp.broadcast_to(a, shape).reshape(-1) for a in fields]
+    outside = code_where(
+        _outside_domain(inputs, (case,), dtype), RESULTS.outside_validity, RESULTS.successful
+    )
 
     def at(R, l, gamma0, t):  # one layout at one angle: the layout's fields may vary with θ
         sol, rates = jax.jvp(
@@ -446,7 +519,8 @@ def _roller_forces(layout, theta, inputs, *, solver, case):
         )
         kinematics = _kinematics(*_pose_and_rates(R, l, _layout_angles(gamma0), *angles))
         contact = _contact(kinematics, inputs)
-        return _solve(R, kinematics, contact, inputs, *_case_motion(inputs, case))
+        f = _solve(R, kinematics, contact, inputs, *_case_motion(inputs, case))
+        return dataclasses.replace(f, result=worst(f.result, sol.result, outside))
 
     out = jax.vmap(at)(*flat)
     return jax.tree_util.tree_map(lambda x: x.reshape(shape + x.shape[1:]), out)
@@ -464,12 +538,14 @@ def _rollers_last(f):
     )
 
 
-def _series(case, f):
-    """The series over the angles a case's quantities use, from its ``RollerForces`` at an angle."""
+def _series(case, f, checked):
+    """The series over the angles a case's quantities use, from its ``RollerForces`` at an angle;
+    with ``checked`` its result codes too."""
+    series = {"axial": f.axial, **({"result": f.result} if checked else {})}
     if case == "lts":
-        return {"axial": f.axial}
+        return series
     return {
-        "axial": f.axial,
+        **series,
         "moment_x": f.moment[..., 0],
         "moment_y": f.moment[..., 1],
         "normal_max": jnp.max(f.normal, 0),
@@ -477,9 +553,9 @@ def _series(case, f):
     }
 
 
-def _over_angles(R, l, gamma0, sol, rates, inputs, cases, full):
-    """For each named case: its ``_series`` at every angle of ``sol`` (last axis), and with
-    ``full`` its ``RollerForces`` (else None); one angle at a time.
+def _over_angles(R, l, gamma0, sol, rates, inputs, cases, full, checked):
+    """For each named case: its ``_series`` at every angle of ``sol`` (last axis; with ``checked``
+    the codes too), and with ``full`` its ``RollerForces`` (else None); one angle at a time.
 
     A loop over the angles, each step the whole batch at one angle: its few dozen intermediate
     arrays stay in the CPU's cache, where over every angle at once XLA writes each to memory. The
@@ -515,7 +591,7 @@ def _over_angles(R, l, gamma0, sol, rates, inputs, cases, full):
         out = {}
         for case in cases:
             f = _solve(R, kinematics, contact, inputs, *_case_motion(inputs, case))
-            out[case] = (_series(case, f), _rollers_last(f) if full else None)
+            out[case] = (_series(case, f, checked), _rollers_last(f) if full else None)
         return carry, out
 
     _, out = jax.lax.scan(at_angle, None, poses)
@@ -582,9 +658,20 @@ def force_quantities(
     ``friction_power`` [W]; ``result`` (the worst RESULTS code). Elementwise: a
     batch of layouts (fields of shape (N,), the revolution's (N, n)) gives each
     quantity of shape (N,), faster than ``jax.vmap`` over the layouts (the batch,
-    not the rollers, on the arrays' last axis). Nothing is checked (it runs inside jit).
+    not the rollers, on the arrays' last axis). The names and the type of ``inputs`` are
+    checked; the numbers are not (it runs inside jit; ``result`` flags them).
     """
+    if isinstance(names, str):
+        raise TypeError(
+            f"names = {names!r} is one string; allowed: a sequence of names, e.g. ({names!r},)"
+        )
     names = tuple(names)
+    unknown = [name for name in names if name not in QUANTITIES + ("result",)]
+    if unknown:
+        raise ValueError(
+            f"force quantities {unknown} are not known; allowed: {', '.join(QUANTITIES)}, result"
+        )
+    _check_inputs(inputs, one_number=False)
     return _evaluate(layout, sol, rates, inputs, names)[0]
 
 
@@ -598,9 +685,13 @@ def _evaluate(layout, sol, rates, inputs, names, full=False):
         for case, group in (("running", RUNNING_QUANTITIES), ("lts", LTS_QUANTITIES))
         if set(names) & set(group)
     ]
+    checked = "result" in names
     if wanted:
-        cases = _over_angles(R, l, gamma0, sol, rates, inputs, wanted, full)
+        cases = _over_angles(R, l, gamma0, sol, rates, inputs, wanted, full, checked)
     series = {case: s for case, (s, _) in cases.items()}
+    outside = code_where(
+        _outside_domain(inputs, wanted, dtype), RESULTS.outside_validity, RESULTS.successful
+    )
     for name in names:
         if name in RUNNING_QUANTITIES:
             out[name] = _running_quantity(name, series["running"], torque, R)
@@ -619,10 +710,21 @@ def _evaluate(layout, sol, rates, inputs, names, full=False):
             finite &= jnp.isfinite(value)
         if ratio is not None:
             finite &= jnp.isfinite(ratio) | (torque == 0)
+        # Each case's forces at every angle (N_k < 0: outside the model), and the inputs' domain.
+        codes = [jnp.max(s["result"], -1) for s in series.values()]
         out["result"] = worst(
-            jnp.max(sol.result, -1), code_where(~finite, RESULTS.nonfinite, RESULTS.successful)
+            jnp.max(sol.result, -1),
+            code_where(~finite, RESULTS.nonfinite, RESULTS.successful),
+            outside,
+            *codes,
         )
-    return out, {case: f for case, (_, f) in cases.items()}
+    full_forces = {
+        case: f
+        if f is None
+        else dataclasses.replace(f, result=worst(f.result, sol.result, outside))
+        for case, (_, f) in cases.items()
+    }
+    return out, full_forces
 
 
 @pytree_dataclass
@@ -633,25 +735,30 @@ class ForceResult:
         theta: input angles of the period [rad], (n,).
         running: [`RollerForces`][tripodjax.forces.RollerForces] of the running case at each angle.
         lts: [`RollerForces`][tripodjax.forces.RollerForces] of the LTS case at each angle.
-        gaf_rms, gaf_peak: RMS and largest |GAF| of the running case [N].
-        gaf_third_order, gaf_sixth_order, gaf_ninth_order: GAF amplitudes of the
-            orders 3, 6, 9 of the rotation [N] (only multiples of 3 exist: the
-            period is 2π/3).
+        gaf_rms: RMS of the running case's GAF [N].
+        gaf_peak: largest |GAF| of the running case [N].
+        gaf_third_order: GAF amplitude of the order 3 of the rotation [N] (only
+            multiples of 3 exist: the period is 2π/3).
+        gaf_sixth_order: GAF amplitude of the order 6 [N].
+        gaf_ninth_order: GAF amplitude of the order 9 [N].
         lts_mean: mean axial force opposing the imposed plunge [N].
         lts_ripple: half its peak-to-peak over a revolution (the ± about the mean) [N].
         complementary_torque_steady: magnitude of the mean of the moment's X, Y
             components [N·m].
-        complementary_torque_third_order, complementary_torque_sixth_order:
-            amplitudes of their orders 3 and 6 (the norm over X and Y) [N·m].
+        complementary_torque_third_order: amplitude of their order 3 (the norm over
+            X and Y) [N·m].
+        complementary_torque_sixth_order: amplitude of their order 6 [N·m].
         roller_load_ratio: the largest N_k over the revolution over T/(3R) [–]
             (NaN without torque: 0/0).
+        friction_power: mean power dissipated by friction [W], running case.
+        result: worst [`RESULTS`][tripodjax.results.RESULTS] code over the revolution:
+            the kinematics', ``nonfinite`` where a quantity is not finite,
+            ``outside_validity`` where a roller's N_k < 0 at some angle (lift-off or
+            self-locking friction) or a traced input lies outside its domain.
 
     The RMS, peak and order amplitudes and the steady couple are norms, ∝ |T|: at T = 0 their
     derivative w.r.t. the torque is that of |T| at its kink; 0 is returned there (finite, a
     subgradient), the exact slope q/T everywhere else.
-        friction_power: mean power dissipated by friction [W], running case.
-        result: worst [`RESULTS`][tripodjax.results.RESULTS] code of the kinematics
-            over the revolution, or ``nonfinite`` where a quantity is not finite.
     """
 
     theta: jax.Array
@@ -692,7 +799,7 @@ def forces_halfshaft(
         layout: a [`Layout`][tripodjax.layout.Layout] with scalar fields (``jax.vmap``
             over layouts for batches).
         inputs: [`ForceInputs`][tripodjax.forces.ForceInputs].
-        n_theta: angles per revolution, a multiple of 6.
+        n_theta: angles per revolution, a multiple of 6, at least `MIN_N_THETA` (24).
         solver: any level of [`tripodjax.solvers`][tripodjax.solvers]; the kinematics
             over the revolution come from [`revolution`][tripodjax.kinematics.revolution].
 
@@ -702,7 +809,7 @@ def forces_halfshaft(
     """
     check_layout(layout, one=True)
     _check_inputs(inputs)
-    n_theta = _check_n_theta(n_theta)
+    n_theta = check_n_theta(n_theta)
     return _forces_halfshaft(layout, inputs, n_theta=n_theta, solver=solvers.resolve(solver))
 
 

@@ -24,7 +24,9 @@ class RESULTS(enum.IntEnum):
     nonfinite = 3
     """A NaN or an infinity appeared in the input or the answer."""
     outside_validity = 4
-    """A cheap fidelity's own error estimate is above its stated accuracy."""
+    """The answer lies outside the model's validity: a cheap fidelity's own error estimate is
+    above its stated accuracy, or (the force model) a roller is not pressed onto its track or a
+    traced input lies outside its domain."""
 
     def describe(self) -> str:
         return _DESCRIPTIONS[self]
@@ -35,7 +37,11 @@ _DESCRIPTIONS = {
     RESULTS.max_steps_reached: "the iteration cap was reached before the tolerance was met",
     RESULTS.singular_jacobian: "the Newton Jacobian was singular",
     RESULTS.nonfinite: "a NaN or an infinity appeared in the input or the answer",
-    RESULTS.outside_validity: "the cheap fidelity's error estimate is above its stated accuracy",
+    RESULTS.outside_validity: (
+        "outside the model's validity: the cheap fidelity's error estimate is above its stated "
+        "accuracy, or a roller of the force model is not pressed onto its track (N < 0) or an "
+        "input lies outside its domain"
+    ),
 }
 
 

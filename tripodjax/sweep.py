@@ -31,6 +31,7 @@ from tripodjax._checks import (
     check_instance,
     check_integer,
     check_layout_domain,
+    check_one_number,
     check_sweep_batch,
 )
 from tripodjax._compile import SMALL_SWEEP_OPTIONS
@@ -106,18 +107,6 @@ def _check_concrete(what: str, inputs: object, instead: str) -> None:
             "it runs outside them (it compiles its own chunks of rows and returns NumPy "
             f"arrays): {instead}"
         )
-
-
-def _check_one_number(name: str, inputs: object) -> None:
-    """Every field of ``inputs`` (a pytree) one number, the same for every layout of a sweep."""
-    leaves = jax.tree_util.tree_leaves_with_path(inputs)
-    for path, leaf in leaves:
-        if not isinstance(leaf, jax.core.Tracer) and np.ndim(leaf) != 0:
-            field = f"{name}.{jax.tree_util.keystr(path, simple=True, separator='.')}"
-            raise ValueError(
-                f"{field} has shape {np.shape(leaf)}; allowed: one number for every layout "
-                "(shape ())"
-            )
 
 
 def _check_outputs(outputs: object, gaf: object, forces: object) -> tuple[str, ...]:
@@ -397,7 +386,8 @@ def sweep(
         layouts: a [`Layout`][tripodjax.layout.Layout] whose fields are 1-D arrays of
             one length N (checked element by element against the layout
             domain; the error names the field and the index).
-        n_theta: angles per revolution (a multiple of 6).
+        n_theta: angles per revolution (a multiple of 6; with a force output at least
+            `tripodjax.forces.MIN_N_THETA`, 24).
         solver: a [`tripodjax.solvers`][tripodjax.solvers] object, which carries
             its settings, or a shorthand — ``"newton"`` (default),
             ``"analytic"``, ``"closed_form"`` (see
@@ -480,13 +470,15 @@ def sweep(
         check_instance(
             "forces", forces, force_model.ForceInputs, "a ForceInputs, e.g. tj.ForceInputs(500.0)"
         )
-        _check_one_number("forces", forces)
+        check_one_number("forces", forces, "one number for every layout (shape ())")
     if chunk_size is not None:
         chunk_size = int(check_integer("chunk_size", chunk_size, minimum=1))
     devices = check_sweep_batch(n, None if gaf is None else gaf.torque, devices)
     status = bool(throw) or any(name in STATUS_OUTPUTS for name in outputs)
     computed = outputs + (("result",) if status and "result" not in outputs else ())
     uses_forces = any(name in FORCE_OUTPUTS for name in computed) and forces is not None
+    if uses_forces:
+        force_model.check_n_theta(n_theta)
     uses_gaf = any(name in GAF_OUTPUTS for name in computed) and not uses_forces
     points = _points_per_layout(n_theta, solver, computed, uses_forces)
     small = n * points <= SMALL_SWEEP
