@@ -42,7 +42,7 @@ from jax.scipy.special import ndtri
 
 from tripodjax import forces, friction, hertz, life, vehicle
 from tripodjax._checks import check_instance, check_layout_domain, real_scalar
-from tripodjax.kinematics import metrics_from, revolution
+from tripodjax.kinematics import MIN_N_THETA_ORDERS, metrics_from, revolution
 from tripodjax.layout import Layout
 from tripodjax.optimize import uncertainty
 from tripodjax.optimize._compiled import call, latency_bound_jit, rows_per_call
@@ -910,7 +910,7 @@ def _forces_report(structure, values, x):
     layout = Layout(design["R"], design["l"], design["gamma0_deg"])
     params = friction.GREASE_A.replace(lam=design["lam"], mu_slp=design["mu_slp"])
     # At least the force model's minimum of angles: a spec's coarser grid would alias its orders.
-    n_theta = max(structure.n_theta, forces.MIN_N_THETA)
+    n_theta = max(structure.n_theta, MIN_N_THETA_ORDERS)
     sol, rates = revolution(layout, n_theta, structure.fidelity, with_rates=True)
     names = (*FORCE_REPORT_KEYS, "result")
     return forces.force_quantities(layout, sol, rates, force_inputs(values, params), names)
@@ -927,7 +927,7 @@ def forces_report(spec: Spec, design: Mapping[str, float]) -> dict:
     ``gaf_ninth_order_N``), the LTS (``lts_mean_N``, ``lts_ripple_N``), the complementary
     torque (``complementary_torque_steady_Nm``, ``..._third_order_Nm``,
     ``..._sixth_order_Nm``), ``roller_load_ratio``, ``friction_power_W`` and ``result`` (a
-    RESULTS name)}``. The revolution has at least ``tripodjax.forces.MIN_N_THETA`` angles.
+    RESULTS name)}``. The revolution has at least ``tripodjax.kinematics.MIN_N_THETA_ORDERS`` angles.
     """
     structure = check_spec(spec).structure
     values, x = design_values(spec, design)

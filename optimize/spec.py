@@ -879,26 +879,27 @@ def _constraints(table):
 
 
 def _check_force_model(structure, values):
-    """SpecError where the objective or a constraint takes a quantity of the force model
-    (tripodjax.forces) and loads.gaf_torque is 0 (its roller loads over T/3R are 0/0, its
-    forces 0) or solver.n_theta is below the force model's minimum (its orders would alias)."""
-    from tripodjax.forces import MIN_N_THETA
+    """SpecError where the objective or a constraint takes a GAF or force quantity and
+    solver.n_theta is below the minimum of the orders (they would alias), or a quantity of the
+    force model (tripodjax.forces) and loads.gaf_torque is 0 (its roller loads over T/3R are
+    0/0, its forces 0)."""
+    from tripodjax.kinematics import MIN_N_THETA_ORDERS
 
+    with_orders = [q for q in (*GAF_QUANTITIES, *FORCE_QUANTITIES) if q in structure.needs]
+    if with_orders and structure.n_theta < MIN_N_THETA_ORDERS:
+        raise SpecError(
+            f"solver.n_theta = {structure.n_theta} is not allowed with {with_orders[0]} in the "
+            f"objective or the constraints: at least {MIN_N_THETA_ORDERS} (the orders 3, 6 and 9 "
+            "would alias)"
+        )
     used = [q for q in FORCE_QUANTITIES if q in structure.needs]
     if structure.gaf_model == "forces":
         used += [q for q in GAF_QUANTITIES if q in structure.needs]
-    if not used:
-        return
-    if not values["loads"]["gaf_torque"] > 0:
+    if used and not values["loads"]["gaf_torque"] > 0:
         raise SpecError(
             f"loads.gaf_torque = {values['loads']['gaf_torque']:g} is not allowed with the force "
             f"model's {used[0]} in the objective or the constraints: > 0 N·m (the torque at "
             "which the forces are judged)"
-        )
-    if structure.n_theta < MIN_N_THETA:
-        raise SpecError(
-            f"solver.n_theta = {structure.n_theta} is not allowed with the force model's "
-            f"{used[0]}: at least {MIN_N_THETA} (its orders 3, 6 and 9 would alias)"
         )
 
 

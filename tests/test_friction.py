@@ -1,6 +1,7 @@
 """Friction and GAF (seed §3.2): the seed's facts, an independent evaluation, limits, gradients."""
 
 import math
+import re
 
 import jax
 import jax.numpy as jnp
@@ -408,3 +409,13 @@ def test_seed_gaf_example_fits_the_printed_factor_with_a_diameter():
         assert peak == pytest.approx(386.4, abs=0.05) and rms == pytest.approx(344.9, abs=0.05)
     radii = [size["R"] for table in (catalogue.GE, catalogue.GI) for size in table.values()]
     assert max(radii) < 40.0 < R_printed and min(radii) < R_printed / 2 < max(radii)
+
+
+def test_the_gaf_needs_enough_angles_for_its_orders():
+    """At 6 angles a turn the stroke model's GAF was 5e-12 N (623 N at 360), at 12 its third
+    order the peak: at least 24 (8 a period), in one line."""
+    layout = Layout(25.0, 500.0, math.radians(20.0))
+    with pytest.raises(
+        ValueError, match=re.escape("n_theta = 12 is not allowed for the GAF: at least 24")
+    ):
+        friction.gaf_halfshaft(layout, 1000.0, n_theta=12, model="stroke")

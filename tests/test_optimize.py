@@ -798,12 +798,17 @@ def test_friction_power_and_the_complementary_torques_orders_are_quantities():
             "loads.gaf_torque = 0 is not allowed with the force model's roller_load_ratio",
         ),
         (
-            "[constraints]\nmax_lts = 900.0\n[solver]\nn_theta = 18\n",
-            "solver.n_theta = 18 is not allowed with the force model's lts: at least 24",
+            "[constraints]\nmax_lts = 900.0\n[solver]\nn_theta = 18\n",  # and the default gaf_rms
+            "solver.n_theta = 18 is not allowed with gaf_rms in the objective or the constraints: "
+            "at least 24",
         ),
         ("[forces]\nspeed_rpm = 0.0\n", "forces.speed_rpm = 0.0 is not allowed"),
+        (
+            "[solver]\nn_theta = 12\n",  # the default objective's gaf_rms (Lee's friction)
+            "solver.n_theta = 12 is not allowed with gaf_rms in the objective",
+        ),
     ],
-    ids=["no-torque", "coarse-grid", "no-speed"],
+    ids=["no-torque", "coarse-grid", "no-speed", "coarse-gaf-grid"],
 )
 def test_a_force_quantity_spec_without_torque_angles_or_speed_is_refused(text, message):
     with pytest.raises(optimize.SpecError, match=re.escape(message)):

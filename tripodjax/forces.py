@@ -96,10 +96,6 @@ RUNNING_QUANTITIES = (
 LTS_QUANTITIES = ("lts_mean", "lts_ripple")
 QUANTITIES = RUNNING_QUANTITIES + LTS_QUANTITIES
 MAX_CONTACT_ANGLE = 0.5 * math.pi
-MIN_N_THETA = 24
-"""Angles per revolution of the force quantities at least: 8 a period (2π/3), so that the
-orders 3, 6 and 9 (the period's harmonics 1–3) are told apart (6 a period would alias the
-9th order onto the steady part, 12 a turn the 9th onto the 3rd)."""
 
 
 @checked_pytree_dataclass
@@ -445,18 +441,6 @@ def _outside_domain(inputs, cases, dtype):
     return outside
 
 
-def check_n_theta(n_theta, name="n_theta"):
-    """``n_theta`` of the force quantities: a multiple of 6 (as every revolution's) and at least
-    `MIN_N_THETA`; else one ValueError naming ``name``."""
-    n_theta = _check_n_theta(n_theta, name)
-    if n_theta < MIN_N_THETA:
-        raise ValueError(
-            f"{name} = {n_theta} is not allowed for the force quantities: at least {MIN_N_THETA} "
-            "(8 angles a period, so that the orders 3, 6 and 9 do not alias), e.g. 360"
-        )
-    return n_theta
-
-
 def roller_forces(
     layout: Layout,
     theta: ArrayLike,
@@ -799,7 +783,8 @@ def forces_halfshaft(
         layout: a [`Layout`][tripodjax.layout.Layout] with scalar fields (``jax.vmap``
             over layouts for batches).
         inputs: [`ForceInputs`][tripodjax.forces.ForceInputs].
-        n_theta: angles per revolution, a multiple of 6, at least `MIN_N_THETA` (24).
+        n_theta: angles per revolution, a multiple of 6, at least 24
+            (`tripodjax.kinematics.MIN_N_THETA_ORDERS`).
         solver: any level of [`tripodjax.solvers`][tripodjax.solvers]; the kinematics
             over the revolution come from [`revolution`][tripodjax.kinematics.revolution].
 
@@ -809,7 +794,7 @@ def forces_halfshaft(
     """
     check_layout(layout, one=True)
     _check_inputs(inputs)
-    n_theta = check_n_theta(n_theta)
+    n_theta = _check_n_theta(n_theta, orders="the force quantities")
     return _forces_halfshaft(layout, inputs, n_theta=n_theta, solver=solvers.resolve(solver))
 
 

@@ -538,7 +538,7 @@ def gaf_halfshaft(
     _check_params(params)
     _check_model(model, width, factor)
     solver = solvers.resolve_legacy(solver, fidelity)  # fidelity: the older spelling
-    n_theta = _check_n_theta(n_theta)
+    n_theta = _check_n_theta(n_theta, orders="the GAF")
     inputs = GAFInputs(torque, params, model, width, factor)
     return _gaf_halfshaft(layout, inputs, n_theta=n_theta, solver=solver)
 

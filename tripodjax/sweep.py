@@ -386,8 +386,8 @@ def sweep(
         layouts: a [`Layout`][tripodjax.layout.Layout] whose fields are 1-D arrays of
             one length N (checked element by element against the layout
             domain; the error names the field and the index).
-        n_theta: angles per revolution (a multiple of 6; with a force output at least
-            `tripodjax.forces.MIN_N_THETA`, 24).
+        n_theta: angles per revolution (a multiple of 6; with a GAF or force output at
+            least 24, `tripodjax.kinematics.MIN_N_THETA_ORDERS`).
         solver: a [`tripodjax.solvers`][tripodjax.solvers] object, which carries
             its settings, or a shorthand — ``"newton"`` (default),
             ``"analytic"``, ``"closed_form"`` (see
@@ -477,9 +477,9 @@ def sweep(
     status = bool(throw) or any(name in STATUS_OUTPUTS for name in outputs)
     computed = outputs + (("result",) if status and "result" not in outputs else ())
     uses_forces = any(name in FORCE_OUTPUTS for name in computed) and forces is not None
-    if uses_forces:
-        force_model.check_n_theta(n_theta)
     uses_gaf = any(name in GAF_OUTPUTS for name in computed) and not uses_forces
+    if uses_forces or uses_gaf:
+        _check_n_theta(n_theta, orders="the GAF and force outputs")
     points = _points_per_layout(n_theta, solver, computed, uses_forces)
     small = n * points <= SMALL_SWEEP
     evaluate = functools.partial(
