@@ -1433,6 +1433,14 @@ def xlsx_missing():
     return None
 
 
+def _append(sheet, values):
+    """A row of the workbook, its text as text: a name such as "=1+2" is no formula."""
+    sheet.append(values)
+    for cell in sheet[sheet.max_row]:
+        if isinstance(cell.value, str):
+            cell.data_type = "s"
+
+
 def write_xlsx(report, path):
     """The report's tables as a workbook at ``path``: a sheet per table, header row frozen."""
     from openpyxl import Workbook
@@ -1443,17 +1451,17 @@ def write_xlsx(report, path):
     for table in tables(report).values():
         sheet = book.create_sheet(table.name[:31])
         if table.unavailable:
-            sheet.append([f"{table.title}: not available ({table.unavailable})"])
+            _append(sheet, [f"{table.title}: not available ({table.unavailable})"])
             continue
-        sheet.append([c.label for c in table.columns])
+        _append(sheet, [c.label for c in table.columns])
         for c in sheet[1]:
             c.font = Font(bold=True)
         for row in table.rows:
-            sheet.append([fmt(v) if isinstance(v, NotAvailable) else v for v in row])
+            _append(sheet, [fmt(v) if isinstance(v, NotAvailable) else v for v in row])
         sheet.freeze_panes = "A2"
         for note in table.notes:
             sheet.append([])
-            sheet.append([note])
+            _append(sheet, [note])
         for i, column in enumerate(table.columns):
             width = (
                 max(len(column.label), *(len(fmt(r[i])) for r in table.rows))

@@ -237,6 +237,14 @@ QUANTITIES = {
     "gaf_rms": ("N", "RMS of the generated axial force at loads.gaf_torque (§3.2)"),
     "gaf_peak": ("N", "peak |GAF| at loads.gaf_torque"),
     "gaf_third_order": ("N", "third-order GAF amplitude at loads.gaf_torque"),
+    "gaf_sixth_order": (
+        "N",
+        "sixth-order GAF amplitude at loads.gaf_torque (force model, whatever friction.gaf_model)",
+    ),
+    "gaf_ninth_order": (
+        "N",
+        "ninth-order GAF amplitude at loads.gaf_torque (force model, whatever friction.gaf_model)",
+    ),
     "lts": (
         "N",
         "load-to-stroke resistance: mean axial force against a plunge at "
@@ -299,6 +307,8 @@ KINEMATIC_QUANTITIES = ("irregularity", "eccentricity", "gamma_ripple", "roller_
 GAF_QUANTITIES = ("gaf_rms", "gaf_peak", "gaf_third_order")
 # Quantity → its name in tripodjax.forces (the GAF's too when friction.gaf_model = "forces").
 FORCE_QUANTITIES = {
+    "gaf_sixth_order": "gaf_sixth_order",  # the force model's whatever the GAF's: Lee's has none
+    "gaf_ninth_order": "gaf_ninth_order",
     "lts": "lts_mean",
     "lts_ripple": "lts_ripple",
     "complementary_torque": "complementary_torque_steady",
@@ -1070,11 +1080,7 @@ def _vehicle(table):
             f"vehicle.gears.ratios has {len(ratios)} gears; at most {MAX_GEARS} allowed"
         )
     reverse = _number({"vehicle.gears": gears}, "vehicle.gears", "reverse", 0.0, low_open=True)
-    names = modes.get("names")
-    if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
-        raise SpecError(f"vehicle.modes.names = {names!r} must be a non-empty list of strings")
-    if len(set(names)) != len(names):
-        raise SpecError(f"vehicle.modes.names = {names!r} must not repeat a name")
+    names = _names(modes.get("names"), "vehicle.modes.names")
     weight = _numbers(table, "vehicle.modes", "weight", 0.0)
     if len(weight) != len(names):
         raise SpecError(
@@ -1305,16 +1311,30 @@ def _conditions(table, section):
     names = table[section]["conditions"].get(
         "names", [f"condition {i + 1}" for i in range(len(angles))]
     )
-    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
-        raise SpecError(f"{where}.names = {names!r} must be a list of strings")
+    names = _names(names, f"{where}.names", "a list of strings")
     if not len(angles) == len(shares) == len(names):
         raise SpecError(
             f"{where} lists have lengths angle_deg {len(angles)}, share {len(shares)}, "
             f"names {len(names)}; they must have one length"
         )
-    if len(set(names)) != len(names):  # the report's tables are keyed by them
-        raise SpecError(f"{where}.names = {names!r} must not repeat a name")
     return np.radians(np.asarray(angles)), np.asarray(shares), tuple(names)
+
+
+def _names(names, where, kind="a non-empty list of strings"):
+    """A list of names (driving modes, conditions, sections): a non-empty list of distinct,
+    non-empty, printable strings (the report's tables are keyed by them and its one-line
+    summaries, HTML and workbook show them); else one SpecError naming the entry."""
+    if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
+        raise SpecError(f"{where} = {names!r} must be {kind}")
+    for i, name in enumerate(names):
+        if not name.strip() or not name.isprintable():
+            raise SpecError(
+                f"{where}[{i}] = {name!r} is not allowed: a name of printable characters, not "
+                "empty or blank (no control characters such as a newline)"
+            )
+    if len(set(names)) != len(names):
+        raise SpecError(f"{where} = {names!r} must not repeat a name")
+    return names
 
 
 # [shaft] lists, one entry per section: key → (low, low open, unit).
@@ -1332,11 +1352,7 @@ def _shaft(table):
     tripodjax.shaft's own Section and Material (the message names the section)."""
     from tripodjax import shaft
 
-    names = table["shaft"]["names"]
-    if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
-        raise SpecError(f"shaft.names = {names!r} must be a non-empty list of strings")
-    if len(set(names)) != len(names):
-        raise SpecError(f"shaft.names = {names!r} must not repeat a name")
+    names = _names(table["shaft"]["names"], "shaft.names")
     lists = {
         key: _numbers(table, "shaft", key, low, low_open=low_open, unit=unit)
         for key, (low, low_open, unit) in SHAFT_LISTS.items()

@@ -355,3 +355,17 @@ def test_arguments_whose_shapes_do_not_broadcast_are_named():
         d[:2], R, conformity=1.002, P_s=2350.0, P_d=1347.0, P_sd=2005.0, C_s=1.2
     )
     assert np.shape(pairs.M_s) == (2,)
+
+
+def test_sizes_outside_their_domain_inside_jit_give_nan_and_a_code():
+    """Concrete values are refused at the call; traced ones outside the domain (a negative
+    diameter or pressure) give NaN capacities and ``nonfinite``, never a plausible number."""
+    from tripodjax.results import RESULTS
+
+    def of(d, P_s):
+        return hertz.capacities(d, 25.55, **{**WORKBOOK, "P_s": P_s})
+
+    for d, P_s in ((-43.5, WORKBOOK["P_s"]), (43.5, -1.0)):
+        out = jax.jit(of)(d, P_s)
+        assert math.isnan(float(out.M_s)) and int(out.result) == RESULTS.nonfinite
+    assert int(jax.jit(of)(43.5, WORKBOOK["P_s"]).result) == RESULTS.successful

@@ -765,13 +765,15 @@ def test_multipliers_satisfy_stationarity_at_a_vertex_and_on_bounds():
     assert np.max(np.abs(lagrangian[~on_bound])) <= 2 * tolerance
 
 
-def test_friction_power_and_the_complementary_torques_orders_are_quantities():
-    """friction_power (at forces.speed_rpm) and the complementary torque's orders 3 and 6, as an
-    objective term and constraints, equal the force model called directly."""
+def test_friction_power_and_the_orders_are_quantities():
+    """friction_power (at forces.speed_rpm), the complementary torque's orders 3 and 6 and the
+    GAF's orders 6 and 9, as an objective term and constraints, equal the force model called
+    directly."""
     spec = optimize.parse_spec(
         "[objective]\nw_friction_power = 0.1\nfriction_power_ref = 50.0\n"
         "[constraints]\nmax_complementary_torque_third_order = 1e3\n"
-        "max_complementary_torque_sixth_order = 1e3\n[forces]\nspeed_rpm = 600.0\n"
+        "max_complementary_torque_sixth_order = 1e3\nmax_gaf_sixth_order = 1e3\n"
+        "max_gaf_ninth_order = 1e3\n[forces]\nspeed_rpm = 600.0\n"
     )
     out = optimize.evaluate(spec, {"R": 24.0, "d_roller": 36.0})
     with jax.enable_x64(True):
@@ -784,9 +786,9 @@ def test_friction_power_and_the_complementary_torques_orders_are_quantities():
         )
     q = out["quantities"]
     assert q["friction_power"] == pytest.approx(float(one.friction_power), rel=1e-10)
-    for order in ("third", "sixth"):
-        name = f"complementary_torque_{order}_order"
-        assert q[name] == pytest.approx(float(getattr(one, name)), rel=1e-10)
+    names = ["complementary_torque_third_order", "complementary_torque_sixth_order"]
+    for name in names + ["gaf_sixth_order", "gaf_ninth_order"]:  # the force model's with Lee's GAF
+        assert q[name] == pytest.approx(float(getattr(one, name)), rel=1e-10), name
     assert float(one.friction_power) > 0
 
 
@@ -811,5 +813,25 @@ def test_friction_power_and_the_complementary_torques_orders_are_quantities():
     ids=["no-torque", "coarse-grid", "no-speed", "coarse-gaf-grid"],
 )
 def test_a_force_quantity_spec_without_torque_angles_or_speed_is_refused(text, message):
+    with pytest.raises(optimize.SpecError, match=re.escape(message)):
+        optimize.parse_spec(text)
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        (
+            '[shaft]\nnames = ["A-A", "B-B", "C-C", "outboard stem", "bell\\u0007"]\n',
+            "shaft.names[4] = 'bell\\x07' is not allowed: a name of printable characters",
+        ),
+        (
+            '[life.conditions]\nnames = ["a", "b\\nc", "d", "e", "f"]\n',
+            "life.conditions.names[1] = 'b\\nc' is not allowed",
+        ),
+        ('[vehicle.modes]\nnames = ["sport", " ", "city"]\n', "vehicle.modes.names[1] = ' '"),
+    ],
+    ids=["control-character", "newline", "blank"],
+)
+def test_a_name_the_report_cannot_show_is_refused(text, message):
     with pytest.raises(optimize.SpecError, match=re.escape(message)):
         optimize.parse_spec(text)

@@ -905,3 +905,17 @@ def test_each_joints_static_requirement_names_its_capacity_limit(run):
         rows[("outboard joint", static)] == f"M_s/M_max ≥ {document.fmt(k_s)} (M_s ≥ {limit} N·m)"
     )
     assert rows[("inboard tripod", static)].endswith(f"(M_s ≥ {limit} N·m)")  # one M_max for both
+
+
+def test_xlsx_writes_a_name_that_looks_like_a_formula_as_text(run, tmp_path):
+    """A condition named "=1+2" is its name in the workbook, not a formula the customer's
+    spreadsheet evaluates."""
+    _, body = run
+    named = with_sections(body)
+    named["life"] = copy.deepcopy(named["life"])
+    named["life"]["conditions"][0]["name"] = "=1+2"
+    document.write_xlsx(named, tmp_path / "r.xlsx")
+    from openpyxl import load_workbook
+
+    cell = load_workbook(tmp_path / "r.xlsx")["life"]["A2"]
+    assert (cell.value, cell.data_type) == ("=1+2", "s")

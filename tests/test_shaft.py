@@ -6,6 +6,7 @@ computed from the vehicle inputs alone (tests/test_vehicle.py's workbook vehicle
 sheet's modes of fig. 4.3.4, whose sport column also runs reverse at T_ave).
 """
 
+import dataclasses
 import math
 
 import jax
@@ -568,3 +569,37 @@ def test_the_outer_fibres_strength_is_the_profiles_below_a_step(chain, h, t):
     if h == t == 0.0:
         assert profile == MATERIAL["core_uts"]
         assert float(check.damage[0]) == pytest.approx(float(check.damage[1]), rel=1e-12)
+
+
+def test_a_row_without_torque_does_no_damage(chain):
+    """A gear whose wheel carries no torque (a reverse whose load transfer unloads the axle):
+    load = brake = 0 is no stress cycle, 0 damage, where Goodman's σ_lim was 0/0 and made every
+    radius's damage NaN."""
+    rows = shaft.fatigue_cycles(*chain)
+    idle = np.zeros(rows.load.shape, bool)
+    idle[:, -1, :] = True  # the reverse rows
+    unloaded = dataclasses.replace(
+        rows,
+        load=jnp.where(idle, 0.0, rows.load),
+        brake=jnp.where(idle, 0.0, rows.brake),
+        torque=jnp.where(idle, 0.0, rows.torque),
+    )
+    section, material = shaft.Section(**STEM), shaft.Material(**MATERIAL)
+    check = shaft.fatigue_check(section, material, unloaded)
+    full = shaft.fatigue_check(section, material, rows)
+    assert int(check.result) == RESULTS.successful
+    np.testing.assert_array_equal(np.asarray(check.damage_per_row)[:, idle], 0.0)
+    forward = np.sum(np.where(idle, 0.0, np.asarray(full.damage_per_row)), axis=(1, 2, 3))
+    np.testing.assert_allclose(check.damage, forward, rtol=1e-12)
+    gradient = jax.grad(lambda s: shaft.fatigue_check(s, material, unloaded).damage[0])(section)
+    assert np.isfinite(float(gradient.outer_diameter))
+
+
+def test_a_torque_outside_its_domain_inside_jit_is_no_safety():
+    section, material = shaft.Section(**STEM), shaft.Material(**MATERIAL)
+    check = jax.jit(lambda T: shaft.static_check(section, material, T))
+    for torque in (-1154.0, 0.0):
+        out = check(torque)
+        assert np.all(np.isnan(np.asarray(out.safety))) and not bool(out.passed)
+        assert int(out.result) == RESULTS.nonfinite
+    assert int(check(1154.0).result) == RESULTS.successful

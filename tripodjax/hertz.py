@@ -569,6 +569,9 @@ def _capacities(
     M_s = _torque_at_pressure(P_s, d, R, *common, 0.0)
     M_d = _torque_at_pressure(P_d, d, R, *common, gamma)
     M_sd = _torque_at_pressure(P_sd, d, R, *common, gamma)
+    # The sizes, pressures and C_s > 0 (checked where concrete, here where traced: NaN outside).
+    inside = (d > 0) & (R > 0) & (P_s > 0) & (P_d > 0) & (P_sd > 0) & (C_s > 0)
+    M_s, M_d, M_sd = (_nan_unless(inside, M) for M in (M_s, M_d, M_sd))
     ok = _finite(M_s, M_d, M_sd)
     return Capacities(
         M_s=M_s,

@@ -442,7 +442,8 @@ def _static_check(section, material, torque):
     # derivatives 0 there (not ∞ · 0)
     stressed = radius > 0
     safety = jnp.where(stressed, allowed / jnp.where(stressed, shear, 1.0), jnp.inf)
-    ok = _valid(section, material)[..., None] & jnp.isfinite(torque)
+    # a torque ≤ 0 (checked where concrete, here where traced) is outside the check's domain
+    ok = _valid(section, material)[..., None] & jnp.isfinite(torque) & (torque > 0)
     safety = _nan_unless(ok, safety)
     return StaticCheck(
         radius=radius,
@@ -561,8 +562,9 @@ class FatigueCheck:
         shear: τ = T r / J of the row's torque [MPa].
         stress: σ = √3 τ [MPa].
         mean, amplitude: σ_m, σ_a of the row's cycle [MPa].
-        ratio: r = σ_a / σ_m [–].
-        allowed_amplitude: σ_lim, Goodman on the constant-ratio line at 10⁶ cycles [MPa].
+        ratio: r = σ_a / σ_m [–] (0 for a row without torque: no cycle).
+        allowed_amplitude: σ_lim, Goodman on the constant-ratio line at 10⁶ cycles [MPa]
+            (σ_f for a row without torque, which does no damage).
         cycles_to_failure: N [–].
         damage_per_row: n / N [–].
         damage: Miner's sum Σ n/N per radius [–].
@@ -636,17 +638,18 @@ def _fatigue_check(s, m, rows, workbook):
     # stress's scale: written with the torques it is the same number, and finite where the
     # stress is 0 (the centre of a solid section hardened through, r_TR = 0) instead of 0/0
     mean_torque, amplitude_torque = (rows.load + rows.brake) / 2.0, (rows.load - rows.brake) / 2.0
-    allowed = (
-        sigma_f
-        * sigma_R
-        * amplitude_torque
-        / (sigma_R * amplitude_torque + sigma_f * jnp.abs(mean_torque))
-    )
+    # A row without torque (a gear whose wheel carries none, e.g. a reverse whose load transfer
+    # unloads the axle) is no stress cycle and does no damage, where σ_lim would be 0/0; where no
+    # row has torque the damage is NaN (below).
+    idle = (rows.load == 0) & (rows.brake == 0)
+    cycle = jnp.where(idle, 1.0, amplitude_torque)  # σ_lim of a pure alternation there: σ_f
+    allowed = sigma_f * sigma_R * cycle / (sigma_R * cycle + sigma_f * jnp.abs(mean_torque))
     log_n = 3.0 + 3.0 * (sigma_R - amplitude) / (sigma_R - allowed)
     n_fail = jnp.power(10.0, log_n)
-    per_row = rows.count / n_fail
+    per_row = jnp.where(idle, 0.0, rows.count / n_fail)
     damage = jnp.sum(per_row, axis=(1, 2, 3))
-    ok = _valid(s, m)
+    # A section no row loads (a vehicle without torque) is not checked: NaN, not a pass.
+    ok = _valid(s, m) & jnp.any(~idle)
     damage = _nan_unless(ok, damage)
     return FatigueCheck(
         radius=radius,
@@ -656,7 +659,9 @@ def _fatigue_check(s, m, rows, workbook):
         stress=stress,
         mean=mean,
         amplitude=amplitude,
-        ratio=jnp.broadcast_to(amplitude_torque / mean_torque, mean.shape),
+        ratio=jnp.broadcast_to(
+            jnp.where(idle, 0.0, amplitude_torque / jnp.where(idle, 1.0, mean_torque)), mean.shape
+        ),
         allowed_amplitude=_nan_unless(ok, allowed),
         cycles_to_failure=_nan_unless(ok, n_fail),
         damage_per_row=_nan_unless(ok, per_row),
