@@ -400,3 +400,16 @@ def test_the_balls_fit_on_their_pitch_circle():
         outboard.capacities(touching, n_balls=11)
     inside = outboard.FixedJoint(**{**JOINT, "d": limit * (1 - 1e-9)})
     assert np.isfinite(float(outboard.capacities(inside, n_balls=11).M_s))
+
+
+def test_overlapping_balls_inside_jit_give_nan_and_a_code():
+    """The fit is checked where d and R are concrete; where traced, balls that would overlap
+    (d ≥ 2R sin(π/6) = R) give NaN capacities and ``nonfinite``, not 33 549 N·m."""
+    from tripodjax.results import RESULTS
+
+    def of(d):
+        return outboard.capacities(outboard.FixedJoint(**{**JOINT, "d": d}))
+
+    out = jax.jit(of)(40.0)
+    assert np.isnan(float(out.M_s)) and int(out.result) == RESULTS.nonfinite
+    assert int(jax.jit(of)(JOINT["d"]).result) == RESULTS.successful

@@ -72,6 +72,8 @@ from tripodjax._checks import (
     check_real,
     checked_pytree_dataclass,
 )
+from tripodjax.hertz import _nan_unless
+from tripodjax.results import RESULTS, code_where, worst
 
 __all__ = [
     "READINGS",
@@ -232,13 +234,17 @@ def capacities(
         gamma=gamma,
         **_common(joint, n_balls),
     )
+    # The balls' fit where d and R are traced (checked above where concrete): NaN and
+    # ``nonfinite`` where neighbours would overlap, never a plausible capacity.
+    fits = jnp.asarray(joint.d) < 2.0 * jnp.asarray(joint.R) * math.sin(math.pi / n_balls)
     return dataclasses.replace(
         exact,
-        M_s=exact.M_s * factor,
-        M_d=exact.M_d * factor,
-        M_sd=exact.M_sd * factor,
+        M_s=_nan_unless(fits, exact.M_s * factor),
+        M_d=_nan_unless(fits, exact.M_d * factor),
+        M_sd=_nan_unless(fits, exact.M_sd * factor),
         C_p=exact.C_p / factor ** (1.0 / 3.0),
         mu_nu=exact.mu_nu * factor ** (1.0 / 3.0),
+        result=worst(exact.result, code_where(fits, RESULTS.successful, RESULTS.nonfinite)),
     )
 
 
