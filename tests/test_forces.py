@@ -578,16 +578,22 @@ def test_an_input_outside_its_domain_inside_jit_is_flagged():
     not plausible numbers marked ``successful``. One program, every field traced."""
 
     @jax.jit
-    def code(x):  # (torque, speed, plunge speed, trunnion μ)
+    def codes(x):  # (torque, speed, plunge speed, trunnion μ)
         inputs = forces.ForceInputs(x[0], speed=x[1], plunge_speed=x[2], mu_trunnion=x[3])
-        return forces.forces_halfshaft(CASE_N, inputs, 120).result
+        out = forces.forces_halfshaft(CASE_N, inputs, 120)
+        return out.result, jnp.max(out.running.result), jnp.max(out.lts.result)
 
     good = np.array([1000.0, 100.0, 10.0, 0.01])
-    assert int(code(good)) == RESULTS.successful
+    assert [int(c) for c in codes(good)] == [RESULTS.successful] * 3
     for i, value in enumerate([-5.0, 0.0, 0.0, -0.1]):
         bad = good.copy()
         bad[i] = value
-        assert int(code(bad)) == RESULTS.outside_validity, i
+        whole, running, lts = (int(c) for c in codes(bad))
+        assert whole == RESULTS.outside_validity, i
+        # a case's own angles carry the domain of the inputs it uses: the running case has no
+        # plunge, the LTS case (held still) no running speed
+        assert running == (RESULTS.successful if i == 2 else RESULTS.outside_validity), i
+        assert lts == (RESULTS.successful if i == 1 else RESULTS.outside_validity), i
 
 
 def test_roller_forces_carry_the_kinematics_code_at_each_angle():

@@ -702,12 +702,13 @@ def _evaluate(layout, sol, rates, inputs, names, full=False):
             outside,
             *codes,
         )
-    full_forces = {
-        case: f
-        if f is None
-        else dataclasses.replace(f, result=worst(f.result, sol.result, outside))
-        for case, (_, f) in cases.items()
-    }
+    full_forces = {}  # each case's per-angle codes with the kinematics' and its own inputs' domain
+    for case, (_, f) in cases.items():
+        if f is not None:
+            domain = _outside_domain(inputs, (case,), dtype)
+            code = code_where(domain, RESULTS.outside_validity, RESULTS.successful)
+            f = dataclasses.replace(f, result=worst(f.result, sol.result, code))
+        full_forces[case] = f
     return out, full_forces
 
 
