@@ -39,7 +39,7 @@ from tripodjax.optimize.problem import (
     spec_design,
 )
 from tripodjax.optimize.spec import SHAFT_VARIABLES, Spec, shaft_variable
-from tripodjax.results import RESULTS
+from tripodjax.results import RESULTS, code_where, worst
 
 
 def shaft_lists(structure, values, design):
@@ -108,11 +108,17 @@ def halfshaft_checks(structure, values, design):
     # The parts carry the same torque in series: forward the M_max of the tripod's check
     # (loads.M_max where the spec gives it, else the vehicle's), backward the vehicle's.
     torque = jnp.stack([m_max(structure, values, cycles), cycles.M_max_backward])
+    # A direction without torque (a reverse whose load transfer lifts the wheel) is no check
+    # (checked at 1 N·m and left out: finite derivatives); a vehicle without any is not computed.
+    loaded = torque > 0
     rows = shaft.fatigue_cycles(
         cycles, driving_modes(structure, values), reading=structure.shaft_reading
     )
     sections, materials = _sections(structure, values, design)
-    static = jax.vmap(lambda s, m: shaft.static_check(s, m, torque))(sections, materials)
+    static = jax.vmap(lambda s, m: shaft.static_check(s, m, jnp.where(loaded, torque, 1.0)))(
+        sections, materials
+    )
+    unchecked = code_where(jnp.any(loaded), RESULTS.successful, RESULTS.nonfinite)
     fatigue = jax.vmap(
         lambda s, m: shaft.fatigue_check(s, m, rows, reading=structure.shaft_reading)
     )(sections, materials)
@@ -134,8 +140,12 @@ def halfshaft_checks(structure, values, design):
         "torque": torque,
         "sections": sections,
         "area": jnp.sum(jnp.pi / 4.0 * (outer**2 - inner**2)),
-        "static_safety": jnp.min(static.safety, axis=(-2, -1)),
-        "static_result": static.result,
+        "static_safety": jnp.where(
+            jnp.any(loaded),
+            jnp.min(jnp.where(loaded[:, None], static.safety, jnp.inf), axis=(-2, -1)),
+            jnp.nan,
+        ),
+        "static_result": worst(jnp.where(loaded, static.result, RESULTS.successful), unchecked),
         "damage": fatigue.damage,  # (section, radius)
         # damage per gear at each radius: summed over the modes and engine conditions
         "damage_by_gear": jnp.sum(fatigue.damage_per_row, axis=(2, 4)),

@@ -239,3 +239,21 @@ def test_the_specs_ranges_are_the_librarys(text, message):
     with pytest.raises(optimize.SpecError) as info:
         optimize.parse_spec(text)
     assert str(info.value) == message
+
+
+def test_a_reverse_that_lifts_the_wheel_is_checked_forward_alone():
+    """A reverse load transfer above the rear wheel's static load (4000 N against 3087 N) leaves
+    no backward torque: the reverse rows do no damage and there is no backward static check
+    (both were NaN at every section: "nonfinite", and the command exited 1)."""
+    lifted = optimize.halfshaft_report(
+        optimize.parse_spec("[vehicle]\nreverse_load_transfer_N = 4000.0\n")
+    )
+    default = optimize.halfshaft_report(SPEC)
+    assert lifted["static_torque_Nm"]["backward"] == 0.0
+    for mine, theirs in zip(lifted["sections"], default["sections"], strict=True):
+        assert mine["status"] == "successful"
+        assert 0.0 < mine["damage"] < theirs["damage"]  # the default's reverse rows do damage
+        reverse = [g["damage"] for g in mine["damage_by_gear"] if g["gear"] == "R"]
+        assert reverse == [0.0]
+        # the forward torque is the same, and it gives the default's smaller safety here
+        assert mine["static_safety"] >= theirs["static_safety"]
