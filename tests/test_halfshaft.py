@@ -168,6 +168,23 @@ def test_nonfinite_input_gives_nan_and_a_nonfinite_code(solver):
         solve_halfshaft(seed_case("N"), theta, solver, throw=True)
 
 
+@pytest.mark.parametrize("solver", ["newton", "analytic"])
+def test_a_traced_layout_outside_the_domain_is_outside_validity(solver):
+    """Layout refuses a concrete field outside its domain; a traced one (inside jit) cannot be
+    refused, and its solve says so at every point: the same rule (and ulps) as Layout's."""
+    R = np.array([25.0, 250.0, 0.0, -25.0, 25.0, 25.0, 100.0, 25.0, 25.0])
+    gamma0 = np.array([0.3, 0.3, 0.3, 0.3, 1.0, -0.1, 0.3, np.pi / 4, np.nan])
+    for dtype in (np.float64, np.float32):
+
+        def code(R, g0, theta):
+            return solve_halfshaft(Layout(R, 500.0, g0), theta, solver).result
+
+        at = (R.astype(dtype), gamma0.astype(dtype), THETA.astype(dtype))
+        codes = jax.jit(jax.vmap(code, in_axes=(0, 0, None)))(*at)
+        expected = [0, 4, 4, 4, 4, 4, 0, 0, 3]  # R/l = 0.2 and γ0 = π/4 (rounded) are inside
+        np.testing.assert_array_equal(np.asarray(codes), np.repeat([expected], THETA.size, 0).T)
+
+
 def test_newton_iterations_stay_few_over_the_domain():
     rng = np.random.default_rng(8)
     ratio, g0 = rng.uniform(0, 0.2, 60), rng.uniform(0, np.pi / 4, 60)

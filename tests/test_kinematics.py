@@ -251,6 +251,15 @@ def test_n_theta_must_be_a_multiple_of_6_and_solver_known():
         kinematic_metrics(seed_case("N"), n_theta=100)
     with pytest.raises(ValueError, match="solver = 'exact' is not allowed; allowed: 'newton'"):
         kinematic_metrics(seed_case("N"), solver="exact")
+    # revolution, the building block of custom metrics, checks its own arguments.
+    with pytest.raises(
+        TypeError, match=r"layout = \(25, 500, 0.3\) is not allowed; allowed: a Layout"
+    ):
+        revolution((25, 500, 0.3), 36, with_rates=True)
+    with pytest.raises(TypeError, match="with_rates = 'no' is not allowed; allowed: True or False"):
+        revolution(seed_case("N"), 36, with_rates="no")
+    with pytest.raises(ValueError, match=r"shapes R \(2,\).*jax.vmap over the layouts"):
+        revolution(Layout([25.0, 26.0], 500.0, 0.3), 36, with_rates=False)
 
 
 def test_status_and_throw():

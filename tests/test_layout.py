@@ -212,3 +212,5 @@ def test_seed_cases():
     for bad in (None, 1, True, ["N"]):
         with pytest.raises(TypeError, match="code = "):
             seed_case(bad)
+    with pytest.raises(TypeError, match="does not support item assignment"):
+        TABLE_2_1["N"] = (500.0, 99.0, 20.0)  # type: ignore[index]  # read-only: seed_case stays

@@ -531,6 +531,26 @@ def check_layout_domain(R=None, l=None, gamma0=None, *, names=None, prefix="", d
             )
 
 
+def outside_layout_domain(R, l, gamma0):
+    """Where traced layout fields lie outside `check_layout_domain`'s domain (the same rule, the
+    same tolerance of `TOLERANCE_ULPS` ulps of the fields' dtype): R ≤ 0, l ≤ 0, γ0 < 0,
+    γ0 > π/4 or R/l > 0.2, as a boolean array of the broadcast shape. Comparisons are false
+    for NaN: a NaN field is ``nonfinite``, not outside the domain."""
+    dtype = np.dtype(jax.numpy.result_type(R, l, gamma0, 0.0))
+
+    def top(bound):
+        bound = np.asarray(bound, dtype)
+        return bound + TOLERANCE_ULPS * np.spacing(bound)
+
+    return (
+        (R <= 0)
+        | (l <= 0)
+        | (gamma0 < 0)
+        | (gamma0 > top(MAX_GAMMA0))
+        | (R / l > top(MAX_R_OVER_L))
+    )
+
+
 # --------------------------------------------------------------------------- hertz domain
 
 MIN_CONFORMITY = 1.0005

@@ -44,11 +44,11 @@ from jax.custom_derivatives import SymbolicZero
 from jax.typing import ArrayLike, DTypeLike
 
 from tripodjax import solvers
-from tripodjax._checks import check_flag, check_integer, check_real
+from tripodjax._checks import check_flag, check_integer, check_real, outside_layout_domain
 from tripodjax._compile import latency_bound_at_top_level
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.layout import Layout, check_layout
-from tripodjax.results import RESULTS, code_where
+from tripodjax.results import RESULTS, code_where, worst
 from tripodjax.solvers import DEFAULT_MAX_STEPS, Analytic, Newton, SolverError  # noqa: F401
 
 _RTOL_EPS_MULTIPLE = 32.0
@@ -784,10 +784,11 @@ def _solve_period(layout, theta, solver):
     # The worst code of the angles, formed per layout (the codes of _finish_analytic, reduced).
     bad_layout = ~(jnp.isfinite(R) & jnp.isfinite(l) & jnp.isfinite(gamma0) & finite)
     good_theta = jnp.isfinite(theta)
-    worst = code_where(bad_layout | ~jnp.all(good_theta), RESULTS.nonfinite, RESULTS.successful)
+    code = code_where(bad_layout | ~jnp.all(good_theta), RESULTS.nonfinite, RESULTS.successful)
     flagged = ~bad_layout & jnp.any(good_theta) & (estimate > solver.validity)
-    worst = code_where(flagged, RESULTS.outside_validity, worst)
-    series = PeriodSeries(delta_sin, v_cos, result=worst, error_estimate=estimate)
+    flagged |= outside_layout_domain(R, l, gamma0)
+    code = code_where(flagged, RESULTS.outside_validity, code)
+    series = PeriodSeries(delta_sin, v_cos, result=code, error_estimate=estimate)
     return _finish_analytic(
         R, l, gamma0, theta, delta, v, solver, (residual, estimate), finite, series
     )
@@ -851,6 +852,9 @@ def _finish(R, l, gamma0, theta, delta, v, result, steps, diagnostics=None, seri
     # trivially solvable): a factor NaN/1, so the θ- and layout-derivatives are NaN there too.
     nan_where_bad = jnp.where(bad_input, jnp.nan, 1.0).astype(delta.dtype)
     delta, v = delta * nan_where_bad, v * nan_where_bad
+    # A traced layout outside the documented domain (a concrete one is refused by Layout).
+    outside = outside_layout_domain(R, l, gamma0)
+    result = worst(result, code_where(outside, RESULTS.outside_validity, RESULTS.successful))
     if series is not None:  # one layout (scalar inputs): its coefficients alike
         bad_layout = _nonfinite_inputs(R, l, gamma0, 0.0) | ~jnp.all(jnp.isfinite(theta))
         nan_if_bad = jnp.where(bad_layout, jnp.nan, 1.0).astype(delta.dtype)

@@ -247,7 +247,10 @@ def revolution(
     the second holding d(field)/dθ (forward-mode AD through the solve, so
     implicit for Newton), or None when ``with_rates`` is False. Form metrics
     from them with [`metrics_from`][tripodjax.kinematics.metrics_from]; ``solution.result`` carries the status.
+    A batch of layouts goes through ``jax.vmap`` (as [`sweep`][tripodjax.sweep.sweep] does).
     """
+    check_layout(layout, one=True)
+    check_flag("with_rates", with_rates)
     solver = solvers.resolve(solver)
     dtype = jnp.result_type(layout.R, layout.l, layout.gamma0, 0.0)
     theta = period_grid(n_theta, dtype)

@@ -2,6 +2,8 @@
 
 import math
 import numbers
+import types
+from collections.abc import Mapping
 from typing import TypeGuard
 
 import numpy as np
@@ -54,9 +56,10 @@ class Layout:
     (45°), all finite — the one rule of
     `tripodjax._checks.check_layout_domain` — and raises ``ValueError``
     naming the field (and the first bad index), the value and the allowed
-    range. Only traced fields (inside ``jit``/``vmap``/``grad``) are not
-    range-checked; there a NaN field propagates as NaN (and a non-successful
-    result code of the solve).
+    range. Traced fields (inside ``jit``/``vmap``/``grad``) cannot be refused:
+    there a field outside the domain gives the solve's result code
+    ``outside_validity`` at every point (`tripodjax._checks.outside_layout_domain`,
+    the same rule), and a NaN field NaN with the code ``nonfinite``.
 
     Use [`from_degrees`][tripodjax.layout.Layout.from_degrees] to give ``gamma0`` in degrees.
     """
@@ -116,20 +119,22 @@ def check_layout(
     return checked
 
 
-# The seed's Table 2.1 cases (§2.10): code → (l [mm], R [mm], γ0 [deg]).
-TABLE_2_1: dict[str, tuple[float, float, float]] = {
-    "N": (500.0, 25.0, 20.0),
-    "L3": (300.0, 25.0, 20.0),
-    "L4": (400.0, 25.0, 20.0),
-    "L7": (700.0, 25.0, 20.0),
-    "R2": (500.0, 20.0, 20.0),
-    "R3": (500.0, 30.0, 20.0),
-    "R4": (500.0, 40.0, 20.0),
-    "g5": (500.0, 25.0, 5.0),
-    "g10": (500.0, 25.0, 10.0),
-    "g15": (500.0, 25.0, 15.0),
-    "g25": (500.0, 25.0, 25.0),
-}
+# The seed's Table 2.1 cases (§2.10): code → (l [mm], R [mm], γ0 [deg]); read-only.
+TABLE_2_1: Mapping[str, tuple[float, float, float]] = types.MappingProxyType(
+    {
+        "N": (500.0, 25.0, 20.0),
+        "L3": (300.0, 25.0, 20.0),
+        "L4": (400.0, 25.0, 20.0),
+        "L7": (700.0, 25.0, 20.0),
+        "R2": (500.0, 20.0, 20.0),
+        "R3": (500.0, 30.0, 20.0),
+        "R4": (500.0, 40.0, 20.0),
+        "g5": (500.0, 25.0, 5.0),
+        "g10": (500.0, 25.0, 10.0),
+        "g15": (500.0, 25.0, 15.0),
+        "g25": (500.0, 25.0, 25.0),
+    }
+)
 
 
 def seed_case(code: str) -> Layout:

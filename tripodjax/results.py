@@ -25,8 +25,9 @@ class RESULTS(enum.IntEnum):
     """A NaN or an infinity appeared in the input or the answer."""
     outside_validity = 4
     """The answer lies outside the model's validity: a cheap fidelity's own error estimate is
-    above its stated accuracy, or (the force model) a roller is not pressed onto its track or a
-    traced input lies outside its domain."""
+    above its stated accuracy, a traced input lies outside its documented domain (e.g. a layout
+    beyond γ0 = 45° or R/l = 0.2, which `Layout` refuses where concrete), or (the force model) a
+    roller is not pressed onto its track."""
 
     def describe(self) -> str:
         return _DESCRIPTIONS[self]
@@ -39,8 +40,8 @@ _DESCRIPTIONS = {
     RESULTS.nonfinite: "a NaN or an infinity appeared in the input or the answer",
     RESULTS.outside_validity: (
         "outside the model's validity: the cheap fidelity's error estimate is above its stated "
-        "accuracy, or a roller of the force model is not pressed onto its track (N < 0) or an "
-        "input lies outside its domain"
+        "accuracy, an input lies outside its domain, or a roller of the force model is not "
+        "pressed onto its track (N < 0)"
     ),
 }
 
