@@ -111,3 +111,21 @@ def test_spider_offset_matches_printed_form():
     np.testing.assert_allclose(
         joint.spider_offset(l, gamma0, GAMMA), l * (np.cos(gamma0) - np.cos(GAMMA)), atol=1e-11
     )
+
+
+def test_a_list_of_numbers_is_an_array_at_the_kinematics_boundary():
+    """A plain list passes the type check (check_real) and is then taken as its array; it failed
+    inside JAX ("Cannot determine dtype", "can't multiply sequence")."""
+    from tripodjax import Layout, motion, seed_case, solve_halfshaft
+
+    layout = seed_case("N")
+    pairs = [
+        (lambda a: joint.eccentricity(a, 0.3), [25.0, 26.0]),
+        (lambda a: joint.roller_centres(25.0, a, 0.1)[2], [0.3, 0.2]),
+        (lambda a: joint.direction_cosines(0.3, a), [0.1, 0.2]),
+        (lambda a: solve_halfshaft(layout, a).delta, [0.1, 0.2]),
+        (lambda a: motion.halfshaft_motion(layout, a, 100.0).spider_velocity, [0.1, 0.2]),
+        (lambda a: Layout.from_degrees(25.0, 500.0, a).gamma0, [10.0, 20.0]),
+    ]
+    for f, values in pairs:
+        np.testing.assert_array_equal(f(values), f(np.asarray(values)))

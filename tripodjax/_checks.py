@@ -124,6 +124,12 @@ def check_real(name, value, *, allowed="a real number or an array of real number
     return array
 
 
+def as_array(value):
+    """A list or tuple of numbers as its NumPy array (JAX takes no list for an array), anything
+    else as it is: for arguments ``check_real`` accepted."""
+    return np.asarray(value) if isinstance(value, (list, tuple)) else value
+
+
 def _check_precision(name, dtype):
     """The one precision rule: floats are float32 or float64 (float16 has no complex type, nor
     the resolution of the solves; it is refused rather than silently widened)."""

@@ -44,7 +44,13 @@ from jax.custom_derivatives import SymbolicZero
 from jax.typing import ArrayLike, DTypeLike
 
 from tripodjax import solvers
-from tripodjax._checks import check_flag, check_integer, check_real, outside_layout_domain
+from tripodjax._checks import (
+    as_array,
+    check_flag,
+    check_integer,
+    check_real,
+    outside_layout_domain,
+)
 from tripodjax._compile import latency_bound_at_top_level
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.layout import Layout, check_layout
@@ -707,6 +713,7 @@ def solve_halfshaft(
     """
     check_layout(layout)
     check_real("theta", theta)  # the type only: a NaN θ is answered with NaN and a code
+    theta = as_array(theta)
     check_flag("throw", throw)
     solver = solvers.resolve_legacy(solver, rtol=rtol, max_steps=max_steps)
     sol = _solve(layout, theta, solver)

@@ -15,13 +15,14 @@ import jax
 import jax.numpy as jnp
 from jax.typing import ArrayLike
 
-from tripodjax._checks import check_positive, check_real, check_working_angle
+from tripodjax._checks import as_array, check_positive, check_real, check_working_angle
 
 ROLLER_OFFSETS = (0.0, 2.0 * jnp.pi / 3.0, 4.0 * jnp.pi / 3.0)
 
 
 def _check(**arguments):
-    """The joint's rules for each argument given, by its name (see the module)."""
+    """The joint's rules for each argument given, by its name (see the module); returns the
+    arguments in order, a list of numbers as an array."""
     for name, value in arguments.items():
         if name in ("R", "l"):
             check_positive(**{name: value})
@@ -29,11 +30,13 @@ def _check(**arguments):
             check_working_angle(name, value)
         else:  # an angle θ, ψ or τ
             check_real(name, value)
+    values = tuple(as_array(value) for value in arguments.values())
+    return values if len(values) > 1 else values[0]
 
 
 def roller_angles(psi: ArrayLike) -> jax.Array:
     """ψ_i = ψ + (i − 1)·2π/3 [rad] on a trailing axis of length 3 (2.4.7)."""
-    _check(psi=psi)
+    psi = _check(psi=psi)
     return _roller_angles(psi)
 
 
@@ -48,7 +51,7 @@ def direction_cosines(gamma: ArrayLike, tau: ArrayLike) -> jax.Array:
     Rows are X, Y, Z; columns are X', Y', Z' (entries l_j, m_j, n_j), so the
     last column is the spider axis Z' in the pot frame. Shape ``(..., 3, 3)``.
     """
-    _check(gamma=gamma, tau=tau)
+    gamma, tau = _check(gamma=gamma, tau=tau)
     gamma, tau = jnp.broadcast_arrays(gamma, tau)
     cg, sg, ct, st = jnp.cos(gamma), jnp.sin(gamma), jnp.cos(tau), jnp.sin(tau)
     zero = jnp.zeros_like(gamma)
@@ -66,7 +69,7 @@ def eccentricity(R: ArrayLike, gamma: ArrayLike) -> jax.Array:
     Evaluated as R sin²(γ/2)/cos γ, which keeps full relative accuracy at
     small γ (no cancellation in 1 − cos γ).
     """
-    _check(R=R, gamma=gamma)
+    R, gamma = _check(R=R, gamma=gamma)
     return _eccentricity(R, gamma)
 
 
@@ -79,7 +82,7 @@ def eccentricity_components(
     R: ArrayLike, gamma: ArrayLike, psi: ArrayLike
 ) -> tuple[jax.Array, jax.Array]:
     """Eccentricity components (e_x, e_y) = e (cos 3ψ, sin 3ψ) [mm] (2.5.8)."""
-    _check(R=R, gamma=gamma, psi=psi)
+    R, gamma, psi = _check(R=R, gamma=gamma, psi=psi)
     e = _eccentricity(R, gamma)
     return e * jnp.cos(3.0 * psi), e * jnp.sin(3.0 * psi)
 
@@ -90,7 +93,7 @@ def spider_offset(l: ArrayLike, gamma0: ArrayLike, gamma: ArrayLike) -> jax.Arra
     The constant c0 is taken as 0: positions are measured from where the
     spider sits at θ = 0. Written as 2 l sin((γ+γ0)/2) sin((γ−γ0)/2).
     """
-    _check(l=l, gamma0=gamma0, gamma=gamma)
+    l, gamma0, gamma = _check(l=l, gamma0=gamma0, gamma=gamma)
     return _spider_offset(l, gamma0, gamma)
 
 
@@ -108,7 +111,7 @@ def spider_centre(
     a, b: 2.5.13 (fixed frame, X and Y); Z* − c = −e sin γ cos 3ψ (2.6.2,
     which fixes the sign of 2.5.15). Returns a tuple of three arrays.
     """
-    _check(R=R, gamma=gamma, theta=theta, psi=psi)
+    R, gamma, theta, psi = _check(R=R, gamma=gamma, theta=theta, psi=psi)
     return _spider_centre(R, gamma, theta, psi)
 
 
@@ -132,7 +135,7 @@ def roller_centres(
     (2.6.3, an ellipse); Z_i − c = −(R/2) tan γ [2 cos ψ_i + (1 − cos γ) cos 3ψ]
     along the pot axis (2.6.2).
     """
-    _check(R=R, gamma=gamma, psi=psi)
+    R, gamma, psi = _check(R=R, gamma=gamma, psi=psi)
     return _roller_centres(R, gamma, psi)
 
 
@@ -154,7 +157,7 @@ def roller_radial_distance(R: ArrayLike, gamma: ArrayLike, psi: ArrayLike) -> ja
     sin 3x / sin x = 1 + 2 cos 2x, the stable form is
     |r_i| = R + e (1 + 2 cos 2ψ_i), which ranges over R − e … R + 3e.
     """
-    _check(R=R, gamma=gamma, psi=psi)
+    R, gamma, psi = _check(R=R, gamma=gamma, psi=psi)
     e = _eccentricity(R, gamma)[..., None]
     R = jnp.asarray(R)
     return R + e * (1.0 + 2.0 * jnp.cos(2.0 * _roller_angles(psi)))
@@ -162,6 +165,6 @@ def roller_radial_distance(R: ArrayLike, gamma: ArrayLike, psi: ArrayLike) -> ja
 
 def roller_path_semi_axes(R: ArrayLike, gamma: ArrayLike) -> tuple[jax.Array, jax.Array]:
     """Semi-axes (R / cos γ, R) [mm] of the elliptical roller-centre path (2.6.3)."""
-    _check(R=R, gamma=gamma)
+    R, gamma = _check(R=R, gamma=gamma)
     R = jnp.asarray(R)
     return R / jnp.cos(gamma), R * jnp.ones_like(gamma)

@@ -12,6 +12,7 @@ from jax.typing import ArrayLike
 from tripodjax._checks import (
     MAX_GAMMA0,
     MAX_R_OVER_L,
+    as_array,
     check_choice,
     check_instance,
     check_layout_domain,
@@ -71,10 +72,10 @@ class Layout:
     def __post_init__(self) -> None:
         values = {"R": self.R, "l": self.l, "gamma0": self.gamma0}
         for name, value in values.items():
-            array = check_real(f"Layout.{name}", value)
+            check_real(f"Layout.{name}", value)
             if isinstance(value, (list, tuple)):  # a NumPy array at the boundary, not a pytree node
-                object.__setattr__(self, name, array)
-                values[name] = array
+                values[name] = as_array(value)
+                object.__setattr__(self, name, values[name])
         check_shapes({name: np.shape(value) for name, value in values.items()}, "Layout.")
         check_layout_domain(
             **{name: value for name, value in values.items() if concrete(value) is not None},
@@ -85,6 +86,7 @@ class Layout:
     def from_degrees(cls, R: ArrayLike, l: ArrayLike, gamma0_deg: ArrayLike) -> "Layout":
         """Build a Layout with the layout articulation angle in degrees (0 ≤ gamma0_deg ≤ 45)."""
         check_real("gamma0_deg", gamma0_deg)
+        gamma0_deg = as_array(gamma0_deg)
         if concrete(gamma0_deg) is not None:
             check_layout_domain(gamma0=gamma0_deg, names={"gamma0": "gamma0_deg"}, degrees=True)
         if _is_scalar(gamma0_deg):

@@ -22,7 +22,7 @@ import numpy as np
 from jax.typing import ArrayLike
 
 from tripodjax import joint
-from tripodjax._checks import check_real, check_shapes
+from tripodjax._checks import as_array, check_real, check_shapes
 from tripodjax._compile import latency_bound_at_top_level
 from tripodjax._pytree import pytree_dataclass
 from tripodjax.halfshaft import solve_halfshaft
@@ -86,12 +86,13 @@ def _prepare(
 
 def _check_motion(layout, theta, theta_dot, theta_ddot):
     """One layout (scalar fields) and real θ, θ̇, θ̈ whose shapes broadcast together (a NaN
-    angle is answered with NaN, as by the solve)."""
+    angle is answered with NaN, as by the solve); returns θ, θ̇, θ̈ (lists as arrays)."""
     check_layout(layout, one=True)
     rates = {"theta": theta, "theta_dot": theta_dot, "theta_ddot": theta_ddot}
     for name, value in rates.items():
         check_real(name, value)
     check_shapes({name: np.shape(value) for name, value in rates.items()})
+    return tuple(as_array(value) for value in rates.values())
 
 
 def halfshaft_motion(
@@ -107,7 +108,7 @@ def halfshaft_motion(
     Returns:
         [`JointMotion`][tripodjax.motion.JointMotion] in mm, mm/s, mm/s².
     """
-    _check_motion(layout, theta, theta_dot, theta_ddot)
+    theta, theta_dot, theta_ddot = _check_motion(layout, theta, theta_dot, theta_ddot)
     return _halfshaft_motion(layout, theta, theta_dot, theta_ddot)
 
 
@@ -132,7 +133,7 @@ def first_order_motion(
     spider offset c is constant (taken as 0), so the axial components are
     Z* − c and Z_i − c.
     """
-    _check_motion(layout, theta, theta_dot, theta_ddot)
+    theta, theta_dot, theta_ddot = _check_motion(layout, theta, theta_dot, theta_ddot)
     return _first_order_motion(layout, theta, theta_dot, theta_ddot)
 
 
