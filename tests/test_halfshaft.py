@@ -254,6 +254,11 @@ def test_polynomial_stage_changes_no_digit_and_falls_back_outside_its_range(dtyp
         (lambda: Analytic(nodes=8.0), TypeError, "nodes = 8.0 is not allowed"),
         (lambda: solvers.resolve("exact"), ValueError, "solver = 'exact' is not allowed"),
         (lambda: solvers.resolve(3), TypeError, "solver = 3 is not allowed"),
+        (
+            lambda: solve_halfshaft(Layout(np.array([25.0, 26.0]), 500.0, 0.3), np.zeros(3)),
+            ValueError,
+            "the arguments have shapes layout.R (2,), theta (3,); allowed: numbers, or arrays",
+        ),
     ],
 )
 def test_solver_options_are_validated_at_construction(make, error, message):

@@ -46,6 +46,7 @@ from jax.typing import ArrayLike, DTypeLike
 from tripodjax import solvers
 from tripodjax._checks import (
     as_array,
+    check_broadcast,
     check_flag,
     check_integer,
     check_real,
@@ -714,6 +715,9 @@ def solve_halfshaft(
     check_layout(layout)
     check_real("theta", theta)  # the type only: a NaN θ is answered with NaN and a code
     theta = as_array(theta)
+    check_broadcast(
+        **{f"layout.{name}": getattr(layout, name) for name in ("R", "l", "gamma0")}, theta=theta
+    )
     check_flag("throw", throw)
     solver = solvers.resolve_legacy(solver, rtol=rtol, max_steps=max_steps)
     sol = _solve(layout, theta, solver)
