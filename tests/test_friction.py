@@ -204,7 +204,8 @@ def test_an_eager_gaf_derivative_runs_the_jacobian_program_and_equals_reverse_mo
     before = program._cache_size()
     got = jax.grad(lambda *a: gaf(*a).third_order, argnums=(0, 1, 2))(layout, 900.0, params)
     forward = jax.jacfwd(lambda *a: gaf(*a).force, argnums=(0, 1, 2))(layout, 900.0, params)
-    assert program._cache_size() == before + 1  # one program for both
+    # One program for both (none where another test of this worker compiled it already).
+    assert program._cache_size() - before <= 1
     want = latency_bound_jit(jax.jacrev(plain, argnums=(0, 1, 2)))(layout, 900.0, params)
     for got_, want_ in ((got, want[0]), (forward, want[1])):
         for g, w in zip(*(jax.tree_util.tree_leaves(x) for x in (got_, want_)), strict=True):
