@@ -436,8 +436,8 @@ def gaf(
     ``theta``, ``gamma``, ``torque`` and ``R`` are numbers or non-empty arrays
     (lists too) that broadcast together. Differentiable w.r.t. γ, torque, R and
     every FrictionParams field. The stroke model's sum is formed from the small
-    stroke rates as on the halfshaft, so float32 keeps it at small γ (1e-3 of
-    float64 at γ = 1e-6 rad, its γ-derivative 0 at γ = 0).
+    stroke rates as on the halfshaft, so float32 keeps it at small γ (within
+    1e-4 of float64's peak down to γ = 1e-9 rad, its γ-derivative 0 at γ = 0).
     """
     check_finite("theta", theta, " [rad]")
     check_working_angle("gamma", gamma)
