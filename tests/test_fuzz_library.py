@@ -415,6 +415,18 @@ BOUNDARY = {
         {"theta": "finite", "gamma": "working_angle", "params": "object", "stroke": "choice"},
         "{}",
     ),
+    "friction.friction_from_trunnion_force": (
+        friction.friction_from_trunnion_force,
+        dict(F_x=1000.0, F_y=100.0, F_z=0.0, theta=0.3, gamma=0.2),
+        {
+            "F_x": "finite",
+            "F_y": "finite",
+            "F_z": "finite",
+            "theta": "finite",
+            "gamma": "working_angle",
+        },
+        "{}",
+    ),
     "friction.gaf": (
         friction.gaf,
         dict(theta=0.3, gamma=0.3, torque=100.0, R=25.0, model="printed", width=0.01),

@@ -369,6 +369,27 @@ def _unchecked(R, l, gamma0):
         (lambda: layouts(2), {"chunk_size": 0}, "chunk_size = 0 is outside the allowed range"),
         (lambda: layouts(2), {"chunk_size": -1}, "chunk_size = -1 is outside the allowed range"),
         (lambda: layouts(2), {"n_theta": 100}, "n_theta = 100 is not allowed"),
+        # A friction constant of 3 values lined up with the 3 rollers (wrong GAF numbers, no error).
+        (
+            lambda: layouts(3),
+            {
+                "outputs": ("gaf_rms",),
+                "gaf": friction.GAFInputs(
+                    1000.0, friction.FrictionParams(mu_slp=np.array([0.1, 0.2, 0.3]))
+                ),
+            },
+            "gaf.params.mu_slp has shape (3,); allowed: one number for every layout (shape ())",
+        ),
+        (
+            lambda: layouts(2),
+            {"outputs": ("gaf_rms",), "gaf": friction.GAFInputs(1000.0, width=np.full(2, 0.01))},
+            "gaf.width has shape (2,); allowed: one number for every layout",
+        ),
+        (
+            lambda: layouts(2),
+            {"outputs": ("gaf_rms",), "gaf": friction.GAFInputs([1000.0, 500.0])},
+            "gaf.torque has shape (2,); allowed: one number for every layout",
+        ),
     ],
 )
 def test_bad_inputs(build, kwargs, message):

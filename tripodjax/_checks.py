@@ -14,7 +14,8 @@ One rule per domain, written once and called by every layer with its own names:
 - `check_layout_domain` — the halfshaft layout domain (R, l, γ0), used by
   [`Layout`][tripodjax.layout.Layout], [`sweep`][tripodjax.sweep.sweep] and the optimiser's spec;
 - `check_choice` — every mode/choice argument;
-- `check_shapes` — fields that broadcast together and are not empty (a Layout's);
+- `check_shapes` — fields that broadcast together and are not empty (a Layout's;
+  `check_not_empty` one field);
   `check_sweep_batch`, `check_devices` — what a sweep's torque and devices must be beside its layouts.
 
 Every error is a ``ValueError`` (or ``TypeError`` for a wrong type) that names
@@ -384,12 +385,17 @@ def check_shapes(shapes, prefix="", allowed="numbers, or arrays whose shapes bro
     broadcast shape.
     """
     for name, shape in shapes.items():
-        if math.prod(shape) == 0:
-            raise ValueError(
-                f"{prefix}{name} is empty (shape {tuple(shape)}); allowed: a number or a "
-                "non-empty array"
-            )
+        check_not_empty(prefix + name, shape)
     return _broadcast(shapes, f"{prefix.rstrip('.') or 'the'} fields", allowed)
+
+
+def check_not_empty(name, shape):
+    """``ValueError`` for an empty array (shape with a 0), as a Layout's fields: a number or a
+    non-empty array, never one without values."""
+    if math.prod(shape) == 0:
+        raise ValueError(
+            f"{name} is empty (shape {tuple(shape)}); allowed: a number or a non-empty array"
+        )
 
 
 def check_broadcast(**values):
@@ -622,5 +628,6 @@ def check_one_number(name: str, inputs: object, allowed: str) -> None:
     naming the field and its shape, with ``allowed`` saying what to do instead."""
     for path, leaf in jax.tree_util.tree_leaves_with_path(inputs):
         if not isinstance(leaf, jax.core.Tracer) and np.ndim(leaf) != 0:
-            field = f"{name}.{jax.tree_util.keystr(path, simple=True, separator='.')}"
+            within = jax.tree_util.keystr(path, simple=True, separator=".")
+            field = f"{name}.{within}" if within else name  # ``inputs`` a field itself
             raise ValueError(f"{field} has shape {np.shape(leaf)}; allowed: {allowed}")

@@ -37,10 +37,13 @@ from jax.typing import ArrayLike
 
 from tripodjax import joint, solvers
 from tripodjax._checks import (
+    check_broadcast,
     check_choice,
     check_finite,
     check_instance,
     check_non_negative,
+    check_not_empty,
+    check_one_number,
     check_positive,
     check_working_angle,
     checked_pytree_dataclass,
@@ -75,10 +78,14 @@ class FrictionParams:
     and may be traced (e.g. ``params.replace(lam=x)`` inside ``jit``). Concrete
     fields (Python or NumPy numbers, concrete arrays) are checked at
     construction: each must be a finite real number ≥ 0 (every constant of
-    the model is non-negative), else ``ValueError`` (``TypeError`` for a
-    string, bool or None) naming the field, the value and the allowed range.
-    Traced fields are not checked; inside ``jit`` a NaN constant gives a NaN
-    GAF.
+    the model is non-negative), or a non-empty array of them (a batch for
+    ``jax.vmap``, or for the elementwise [`mu_sta`][tripodjax.friction.mu_sta],
+    [`mu_avg`][tripodjax.friction.mu_avg], [`mu_dyn`][tripodjax.friction.mu_dyn]), else
+    ``ValueError`` (``TypeError`` for a string, bool or None) naming the field,
+    the value and the allowed range. The GAF ([`gaf`][tripodjax.friction.gaf],
+    [`gaf_halfshaft`][tripodjax.friction.gaf_halfshaft], the sweep's) takes one number
+    per field. Traced fields are not checked; inside ``jit`` a NaN constant gives
+    a NaN GAF (``nonfinite``), a negative one a GAF marked ``outside_validity``.
     """
 
     C_s1: float = 3.86e-2
@@ -98,13 +105,26 @@ class FrictionParams:
 
     def __post_init__(self) -> None:
         for name in self.__dataclass_fields__:
-            check_non_negative(f"FrictionParams.{name}", getattr(self, name))
+            value = getattr(self, name)
+            check_non_negative(f"FrictionParams.{name}", value)  # the domain (`_params_outside`)
+            check_not_empty(f"FrictionParams.{name}", np.shape(value))
+            if isinstance(value, (list, tuple)):  # an array, one leaf of the pytree
+                object.__setattr__(self, name, np.asarray(value))
 
     def replace(self, **changes: Any) -> "FrictionParams":
         """A copy with some fields changed, e.g. ``params.replace(mu_slp=0.04)``."""
         fields = {name: getattr(self, name) for name in self.__dataclass_fields__}
         fields.update(changes)
         return FrictionParams(**fields)
+
+
+def _params_outside(params, dtype):
+    """Whether a (traced) field of ``params`` lies outside the domain that
+    `FrictionParams` checks at construction: every constant ≥ 0. False for NaN (``nonfinite``)."""
+    outside = jnp.asarray(False)
+    for name in params.__dataclass_fields__:
+        outside = outside | (jnp.asarray(getattr(params, name), dtype) < 0)
+    return outside
 
 
 GREASE_A = FrictionParams(mu_slp=0.06)
@@ -116,20 +136,36 @@ def _degrees(gamma):
     return gamma * (180.0 / math.pi)
 
 
+def _arrays(**values):
+    """The checked arguments as arrays (a list too), once none is empty (as a Layout's fields)
+    and their shapes broadcast together (``ValueError`` naming the arguments' shapes)."""
+    for name, value in values.items():
+        check_not_empty(name, np.shape(value))
+    check_broadcast(**values)
+    return tuple(jnp.asarray(value) for value in values.values())
+
+
 def _check_coefficient_inputs(params, **values):
-    """The friction coefficients' arguments (those given): θ finite, γ a working angle, T_d ≥ 0."""
+    """The friction coefficients' arguments (those given): θ finite, γ a working angle, T_d ≥ 0,
+    their shapes and the arrays of ``params`` broadcast together. Returns them as arrays."""
     if "theta" in values:
         check_finite("theta", values["theta"], " [rad]")
     check_working_angle("gamma", values["gamma"])
     if "torque" in values:
         check_non_negative("torque", values["torque"], " N·m")
     _check_params(params)
+    batched = {
+        f"params.{name}": getattr(params, name)
+        for name in params.__dataclass_fields__
+        if np.ndim(getattr(params, name))
+    }
+    return _arrays(**values, **batched)[: len(values)]
 
 
 def mu_sta(gamma: ArrayLike, torque: ArrayLike, params: FrictionParams = GREASE_A) -> jax.Array:
     """Static friction coefficient μ_sta [–] (3.2.9) at articulation γ [rad], 0 ≤ γ < π/2, and
     torque T_d [N·m], ≥ 0."""
-    _check_coefficient_inputs(params, gamma=gamma, torque=torque)
+    gamma, torque = _check_coefficient_inputs(params, gamma=gamma, torque=torque)
     return _mu_sta(gamma, torque, params)
 
 
@@ -143,7 +179,9 @@ def mu_avg(
 ) -> jax.Array:
     """Mean friction coefficient of a roller at its angle θ [rad] (3.2.10); γ [rad] and T_d
     [N·m] as [`mu_sta`][tripodjax.friction.mu_sta]."""
-    _check_coefficient_inputs(params, theta=theta, gamma=gamma, torque=torque)
+    theta, gamma, torque = _check_coefficient_inputs(
+        params, theta=theta, gamma=gamma, torque=torque
+    )
     g = _degrees(gamma)
     static = _mu_sta(gamma, torque, params)
     return (
@@ -157,7 +195,7 @@ def mu_avg(
 def mu_slip_to_roll(gamma: ArrayLike, params: FrictionParams = GREASE_A) -> ArrayLike:
     """Combined sliding–rolling coefficient μ_S/R = R_s γ μ_slp + (1 − R_s γ) λ (3.2.12), γ in
     rad, 0 ≤ γ < π/2."""
-    _check_coefficient_inputs(params, gamma=gamma)
+    (gamma,) = _check_coefficient_inputs(params, gamma=gamma)
     return _mu_slip_to_roll(gamma, params)
 
 
@@ -172,7 +210,7 @@ def mu_dyn(
     """Dynamic friction coefficient (3.2.11) at roller angle θ [rad] and articulation γ [rad],
     0 ≤ γ < π/2, for the inward (+) or outward (−) stroke."""
     check_choice("stroke", stroke, STROKES)
-    _check_coefficient_inputs(params, theta=theta, gamma=gamma)
+    theta, gamma = _check_coefficient_inputs(params, theta=theta, gamma=gamma)
     return _mu_dyn(theta, gamma, params, stroke)
 
 
@@ -202,6 +240,9 @@ def rolling_resistance_hysteresis(
     check_positive(rolling_radius=rolling_radius)
     check_non_negative("a", a, " mm")
     check_non_negative("loss_factor", loss_factor)
+    a, rolling_radius, loss_factor = _arrays(
+        a=a, rolling_radius=rolling_radius, loss_factor=loss_factor
+    )
     factor = 2.0 / (3.0 * math.pi) if contact == "line" else 3.0 / 16.0
     return loss_factor * factor * a / rolling_radius
 
@@ -217,6 +258,7 @@ def rolling_resistance_microslip(
     check_positive(rolling_radius=rolling_radius)
     check_non_negative("b", b, " mm")
     check_non_negative("mu", mu)
+    b, rolling_radius, mu = _arrays(b=b, rolling_radius=rolling_radius, mu=mu)
     return 0.08 * mu * (b / rolling_radius) ** 2
 
 
@@ -229,20 +271,21 @@ def friction_from_trunnion_force(
         / [(sin²θ + cos γ cos²θ) F_x + cos θ sin γ F_y − sin θ cos θ (cos γ − 1) F_z],
 
     the friction (tangential) over the normal component of the measured force
-    (F_x, F_y, F_z) [N] at roller angle θ and articulation γ [rad]; at γ = 0 it
-    is F_y / F_x.
+    (F_x, F_y, F_z) [N, finite] at roller angle θ [rad, finite] and articulation
+    γ [rad], 0 ≤ γ < π/2; at γ = 0 it is F_y / F_x. The arguments broadcast
+    together. Where the normal component is 0 (no force, or a purely
+    tangential one) no coefficient is defined: NaN, not ±inf.
     """
+    for name, force in (("F_x", F_x), ("F_y", F_y), ("F_z", F_z)):
+        check_finite(name, force, " N")
+    check_finite("theta", theta, " [rad]")
+    check_working_angle("gamma", gamma)
+    F_x, F_y, F_z, theta, gamma = _arrays(F_x=F_x, F_y=F_y, F_z=F_z, theta=theta, gamma=gamma)
     sg, cg, st, ct = jnp.sin(gamma), jnp.cos(gamma), jnp.sin(theta), jnp.cos(theta)
     tangential = -ct * sg * F_x + cg * F_y + st * sg * F_z
     normal = (st**2 + cg * ct**2) * F_x + ct * sg * F_y - st * ct * (cg - 1.0) * F_z
-    return tangential / normal
-
-
-def _stroke_weight(theta_i, stroke_rate_i, model, width):
-    """Sign of each roller's contribution: the printed sgn(sin(θ_i + 90°)), or its smooth stroke form."""
-    if model == "printed":
-        return jnp.sign(jnp.cos(theta_i))
-    return jnp.tanh(stroke_rate_i / width)
+    loaded = normal != 0
+    return jnp.where(loaded, tangential / jnp.where(loaded, normal, 1.0), jnp.nan)
 
 
 def _load_per_roller(torque, R, factor):
@@ -250,34 +293,66 @@ def _load_per_roller(torque, R, factor):
     return (2000.0 if factor == "printed" else 1000.0) * torque / (3.0 * R)
 
 
-def _gaf_force(theta_i, gamma, stroke_rate_i, torque, R, params, model, width, factor):
-    """GAF [N] from the roller angles θ_i (…, 3), γ and the rollers' normalised stroke rates.
+def _gaf_from_sum(total, torque, R, width, factor):
+    """GAF [N] from Σ_i μ_GAF,i (3.2.15).
 
     A non-finite R or width (inside jit, where nothing is checked) gives NaN,
     not the 0 that 1/R → 0 or tanh(s/width) → 0 would make of it.
     """
+    force = _load_per_roller(torque, R, factor) * total
+    return jnp.where(jnp.isfinite(R) & jnp.isfinite(width), force, jnp.nan)
+
+
+def _printed_sum(theta_i, gamma, params):
+    """Σ_i sgn(sin(θ_i + 90°)) |μ_dyn(θ_i)| (3.2.14) of the roller angles θ_i (…, 3), γ (…)."""
     magnitude = jnp.abs(_mu_dyn(theta_i, gamma[..., None], params, "in"))
-    mu_gaf = _stroke_weight(theta_i, stroke_rate_i, model, width) * magnitude
-    force = _load_per_roller(torque, R, factor) * jnp.sum(mu_gaf, axis=-1)
-    finite = jnp.isfinite(R) & jnp.isfinite(width)
-    return jnp.where(finite, force, jnp.nan)
+    return jnp.sum(jnp.sign(jnp.cos(theta_i)) * magnitude, axis=-1)
 
 
-def _stroke_sum(sol, rates, R, l, gamma0, params, width):
-    """Σ_i tanh(s_i/width) |μ_dyn,i| of the stroke model over a revolution, from the small unknowns.
+def _stroke_sum(a, c, gamma, u, params, width):
+    """Σ_i tanh(s_i/width) |μ_dyn,i| of the stroke model, s_i = a_i + c, from the small unknowns.
 
-    The rollers' stroke rates s_i = −(1/R) dZ_i/dθ (2.6.2) split into a part
-    whose three terms sum to zero exactly, a_i = d(tan γ cos ψ_i)/dθ, and a
-    common part c = d(tan γ sin²(γ/2) cos 3ψ − c_plunge/R)/dθ of second order.
-    At first order the three terms cancel (GAF ∝ γ0²), so where every
-    |s_i|/width < 1 the sum is formed as
+    ``a`` (…, 3): the part of the rollers' stroke rates whose three terms sum
+    to zero exactly (Σ_i a_i = 0 analytically; it is not formed); ``c`` (…):
+    their common part; ``u`` (…, 3): |sin θ_i|; ``gamma`` (…). At first order
+    the three terms cancel (GAF ∝ γ²), so where every |s_i|/width < 1 the sum
+    is formed as
 
         (c Σ m_i + Σ a_i (m_i − |m_0|) + Σ s_i h_i m_i) / width,
 
-    with m_i = |m_0 + d |sin θ_i||, m_0 = μ_S/R, d = (γ°/15)(C_d1 μ_slp − C_d2)
+    with m_i = |m_0 + d u_i|, m_0 = μ_S/R, d = (γ°/15)(C_d1 μ_slp − C_d2)
     (3.2.11) and tanh x = x (1 + h(x)): every term a product of small
     quantities, no difference of nearly equal ones (float32 keeps it at
-    γ0 ~ 1e-9); elsewhere as Σ tanh(s_i/width) m_i directly.
+    γ ~ 1e-9); elsewhere as Σ tanh(s_i/width) m_i directly.
+    """
+    gamma = gamma[..., None]
+    m0 = _mu_slip_to_roll(gamma, params)
+    d = _degrees(gamma) / 15.0 * (params.C_d1 * params.mu_slp - params.C_d2)
+    inner = m0 + d * u  # μ_dyn of the inward stroke (3.2.11)
+    m = jnp.abs(inner)
+    sign0 = jnp.where(m0 >= 0.0, 1.0, -1.0)
+    dm = jnp.where(inner * sign0 >= 0.0, sign0 * d * u, m - jnp.abs(m0))  # m_i − |m_0|
+    s = a + c[..., None]
+    x = s / width
+    tanh = jnp.tanh(x)
+    x2 = x * x
+    series = x2 * (-1.0 / 3.0 + x2 * (2.0 / 15.0 - x2 * (17.0 / 315.0)))  # tanh(x)/x − 1
+    small_x = jnp.abs(x) < 1e-2
+    h = jnp.where(small_x, series, tanh / jnp.where(small_x, 1.0, x) - 1.0)
+    split = (
+        c * jnp.sum(m, axis=-1) + jnp.sum(a * dm, axis=-1) + jnp.sum(s * h * m, axis=-1)
+    ) / width
+    direct = jnp.sum(tanh * m, axis=-1)
+    return jnp.where(jnp.max(jnp.abs(x), axis=-1) < 1.0, split, direct)
+
+
+def _halfshaft_stroke_sum(sol, rates, R, l, gamma0, params, width):
+    """`_stroke_sum` over a revolution, from the small unknowns of the kinematics.
+
+    The rollers' stroke rates s_i = −(1/R) dZ_i/dθ (2.6.2) split into a part
+    whose three terms sum to zero exactly, a_i = d(tan γ cos ψ_i)/dθ, and a
+    common part c = d(tan γ sin²(γ/2) cos 3ψ − c_plunge/R)/dθ of second order;
+    |sin θ_i| = |cos ψ_i| (θ_i = ψ_i + 90°).
     """
 
     offsets = np.asarray(joint.ROLLER_OFFSETS)
@@ -299,26 +374,7 @@ def _stroke_sum(sol, rates, R, l, gamma0, params, width):
 
     _, a = jax.jvp(zero_sum, (sol.psi, sol.gamma), (rates.psi, rates.gamma))
     _, c = jax.jvp(common, (sol.psi, sol.delta_gamma), (rates.psi, rates.delta_gamma))
-    gamma = sol.gamma[..., None]
-    m0 = _mu_slip_to_roll(gamma, params)
-    d = _degrees(gamma) / 15.0 * (params.C_d1 * params.mu_slp - params.C_d2)
-    u = jnp.abs(cos_rollers(sol.psi))  # |sin θ_i| with θ_i = ψ_i + 90°
-    inner = m0 + d * u  # μ_dyn of the inward stroke (3.2.11)
-    m = jnp.abs(inner)
-    sign0 = jnp.where(m0 >= 0.0, 1.0, -1.0)
-    dm = jnp.where(inner * sign0 >= 0.0, sign0 * d * u, m - jnp.abs(m0))  # m_i − |m_0|
-    s = a + c[..., None]
-    x = s / width
-    tanh = jnp.tanh(x)
-    x2 = x * x
-    series = x2 * (-1.0 / 3.0 + x2 * (2.0 / 15.0 - x2 * (17.0 / 315.0)))  # tanh(x)/x − 1
-    small_x = jnp.abs(x) < 1e-2
-    h = jnp.where(small_x, series, tanh / jnp.where(small_x, 1.0, x) - 1.0)
-    split = (
-        c * jnp.sum(m, axis=-1) + jnp.sum(a * dm, axis=-1) + jnp.sum(s * h * m, axis=-1)
-    ) / width
-    direct = jnp.sum(tanh * m, axis=-1)
-    return jnp.where(jnp.max(jnp.abs(x), axis=-1) < 1.0, split, direct)
+    return _stroke_sum(a, c, sol.gamma, jnp.abs(cos_rollers(sol.psi)), params, width)
 
 
 def _check_model(model, width, factor):
@@ -334,6 +390,14 @@ def _check_load(torque, R):
 
 def _check_params(params, name="params"):
     check_instance(name, params, FrictionParams, "a FrictionParams, e.g. friction.GREASE_A")
+
+
+def _check_one_number(**inputs):
+    """The GAF's inputs (its friction constants, width, a halfshaft's torque) one number each:
+    an array would line up with the three rollers or the angles, not with a batch."""
+    for name, value in inputs.items():
+        value = np.asarray(value) if isinstance(value, (list, tuple)) else value  # one leaf
+        check_one_number(name, value, "one number (jax.vmap over the inputs for a batch)")
 
 
 def gaf(
@@ -354,7 +418,7 @@ def gaf(
         gamma: articulation angle [rad], 0 ≤ γ < π/2 (constant: the single joint).
         torque: joint torque T_d [N·m], ≥ 0.
         R: track pitch-circle radius [mm], > 0.
-        params: [`FrictionParams`][tripodjax.friction.FrictionParams].
+        params: [`FrictionParams`][tripodjax.friction.FrictionParams], one number a field.
         model: ``"printed"`` — the seed's 3.2.14–3.2.15 exactly (a ±λ square
             wave survives at γ = 0); ``"stroke"`` — each roller's sign is
             replaced by tanh(s_i / width), where s_i = tan γ · cos θ_i is the
@@ -362,24 +426,35 @@ def gaf(
             so GAF → 0 as γ → 0 and derivatives exist everywhere. For
             γ ≫ width the two models differ only where |cos θ_i| < width/tan γ,
             i.e. within about width/tan γ rad of each stroke reversal.
-        width: smoothing width of the stroke model [–] (default 0.01: at
-            γ = 20° the sign ramps over ±1.6° of roller angle).
+        width: smoothing width of the stroke model [–], one number > 0 (default
+            0.01: at γ = 20° the sign ramps over ±1.6° of roller angle).
         factor: ``"statics"`` (default) — GAF = (T_d/(3R)) Σ μ_GAF,i, each
             roller loaded by T_d/(3R) as statics gives; ``"printed"`` — the
             seed's 3.2.15 as printed, 2 T_d/(3R), twice as large (right if its R
             is the pitch-circle diameter; see the module).
 
-    Differentiable w.r.t. γ, torque, R and every FrictionParams field.
+    ``theta``, ``gamma``, ``torque`` and ``R`` are numbers or non-empty arrays
+    (lists too) that broadcast together. Differentiable w.r.t. γ, torque, R and
+    every FrictionParams field. The stroke model's sum is formed from the small
+    stroke rates as on the halfshaft, so float32 keeps it at small γ (within
+    1e-4 of float64's peak down to γ = 1e-9 rad, its γ-derivative 0 at γ = 0).
     """
     check_finite("theta", theta, " [rad]")
     check_working_angle("gamma", gamma)
     _check_load(torque, R)
     _check_params(params)
     _check_model(model, width, factor)
+    _check_one_number(params=params, width=width)
+    theta, gamma, torque, R = _arrays(theta=theta, gamma=gamma, torque=torque, R=R)
     theta_i = joint._roller_angles(jnp.asarray(theta, jnp.result_type(theta, gamma, 0.0)))
     gamma = jnp.broadcast_to(jnp.asarray(gamma, theta_i.dtype), theta_i.shape[:-1])
-    stroke_rate = jnp.tan(gamma)[..., None] * jnp.cos(theta_i)
-    return _gaf_force(theta_i, gamma, stroke_rate, torque, R, params, model, width, factor)
+    if model == "printed":
+        total = _printed_sum(theta_i, gamma, params)
+    else:  # s_i = tan γ cos θ_i: all of it sums to zero over the rollers, no common part
+        a = jnp.tan(gamma)[..., None] * jnp.cos(theta_i)
+        u = jnp.abs(jnp.sin(theta_i))
+        total = _stroke_sum(a, jnp.zeros_like(gamma), gamma, u, params, width)
+    return _gaf_from_sum(total, torque, R, width, factor)
 
 
 def _safe_rms(x, axis=-1):
@@ -412,7 +487,9 @@ class GAFResult:
         result: worst [`RESULTS`][tripodjax.results.RESULTS] code of the kinematics over
             the revolution, or ``nonfinite`` where the force is not finite
             (e.g. a NaN torque or friction constant inside ``jit``: the RMS
-            is then NaN, never 0).
+            is then NaN, never 0), or ``outside_validity`` where a traced
+            input lies outside the domain its construction checks (a
+            negative torque or friction constant, a width ≤ 0).
     """
 
     theta: jax.Array
@@ -428,17 +505,20 @@ class GAFInputs:
     """What a GAF over a revolution needs besides the kinematics, as one object (for [`sweep`][tripodjax.sweep.sweep]).
 
     Attributes:
-        torque: joint torque T_d [N·m], finite and ≥ 0 (a number or an array
-            that broadcasts against the batch).
+        torque: joint torque T_d [N·m], finite and ≥ 0: one number (for every
+            layout of a [`sweep`][tripodjax.sweep.sweep]; for a batch of torques,
+            ``jax.vmap`` over [`gaf_halfshaft`][tripodjax.friction.gaf_halfshaft]).
         params: [`FrictionParams`][tripodjax.friction.FrictionParams] (default grease A).
         model: ``"stroke"`` (default) or ``"printed"``, see [`gaf`][tripodjax.friction.gaf].
-        width: smoothing width of the stroke model [–], > 0.
+        width: smoothing width of the stroke model [–], one number > 0.
         factor: ``"statics"`` (default) or ``"printed"`` (the seed's 2 T_d/(3R)),
             see [`gaf`][tripodjax.friction.gaf].
 
     A pytree: ``torque``, ``params`` and ``width`` are leaves (traced,
     differentiable), ``model`` and ``factor`` are static. Checked at construction (the error
-    names the field); JAX's own rebuilding skips the checks.
+    names the field; an array field may be a batch that ``jax.vmap`` maps over, never empty;
+    [`sweep`][tripodjax.sweep.sweep] and [`gaf_halfshaft`][tripodjax.friction.gaf_halfshaft]
+    take one number a field); JAX's own rebuilding skips the checks.
     """
 
     torque: ArrayLike
@@ -451,10 +531,23 @@ class GAFInputs:
         check_non_negative("torque", self.torque, " N·m")
         _check_params(self.params)
         _check_model(self.model, self.width, self.factor)
+        for name in ("torque", "width"):
+            value = getattr(self, name)
+            check_not_empty(name, np.shape(value))
+            if isinstance(value, (list, tuple)):  # an array, one leaf of the pytree
+                object.__setattr__(self, name, np.asarray(value))
+
+
+_GAF_INPUT_KEYS = tuple(jax.tree_util.GetAttrKey(name) for name in ("torque", "params", "width"))
 
 
 def _flatten_gaf_inputs(g):
     return (g.torque, g.params, g.width), (g.model, g.factor)
+
+
+def _flatten_gaf_inputs_with_keys(g):
+    children, static = _flatten_gaf_inputs(g)
+    return tuple(zip(_GAF_INPUT_KEYS, children, strict=True)), static
 
 
 def _unflatten_gaf_inputs(static, children):
@@ -466,7 +559,17 @@ def _unflatten_gaf_inputs(static, children):
     return obj
 
 
-jax.tree_util.register_pytree_node(GAFInputs, _flatten_gaf_inputs, _unflatten_gaf_inputs)
+jax.tree_util.register_pytree_with_keys(
+    GAFInputs, _flatten_gaf_inputs_with_keys, _unflatten_gaf_inputs, _flatten_gaf_inputs
+)
+
+
+def _inputs_outside(inputs, dtype):
+    """Whether a (traced) field of ``inputs`` lies outside the domain that `GAFInputs` and
+    `FrictionParams` check at construction: torque ≥ 0, width > 0, every constant ≥ 0.
+    False for NaN (``nonfinite``)."""
+    torque, width = (jnp.asarray(x, dtype) for x in (inputs.torque, inputs.width))
+    return (torque < 0) | (width <= 0) | _params_outside(inputs.params, dtype)
 
 
 def gaf_from_revolution(
@@ -479,8 +582,9 @@ def gaf_from_revolution(
 
     ``sol, rates`` come from [`revolution`][tripodjax.kinematics.revolution] with
     ``with_rates=True``; ``inputs``: a [`GAFInputs`][tripodjax.friction.GAFInputs]
-    (torque, friction constants, model, width). Nothing is checked here (it runs
-    inside jit).
+    (torque, friction constants, model, width), one number a field. Nothing is
+    checked here (it runs inside jit): a field outside its domain makes ``result``
+    ``outside_validity``, a NaN one ``nonfinite``.
     """
     torque, params, model, width = inputs.torque, inputs.params, inputs.model, inputs.width
     factor = inputs.factor
@@ -488,19 +592,23 @@ def gaf_from_revolution(
     R, l, gamma0 = (jnp.asarray(a, dtype) for a in (layout.R, layout.l, layout.gamma0))
     if model == "printed":
         theta_lee = joint._roller_angles(sol.psi) + 0.5 * jnp.pi
-        force = _gaf_force(theta_lee, sol.gamma, None, torque, R, params, model, width, factor)
+        total = _printed_sum(theta_lee, sol.gamma, params)
     else:
-        total = _stroke_sum(sol, rates, R, l, gamma0, params, width)
-        force = _load_per_roller(torque, R, factor) * total
-        force = jnp.where(jnp.isfinite(R) & jnp.isfinite(width), force, jnp.nan)
+        total = _halfshaft_stroke_sum(sol, rates, R, l, gamma0, params, width)
+    force = _gaf_from_sum(total, torque, R, width, factor)
     rms = _safe_rms(force)
+    outside = _inputs_outside(inputs, dtype)
     return GAFResult(
         theta=sol.theta,
         force=force,
         rms=rms,
         peak=jnp.max(jnp.abs(force)),
         third_order=harmonic_amplitude(force, 1),
-        result=worst(jnp.max(sol.result), code_where(~jnp.isfinite(rms), RESULTS.nonfinite, 0)),
+        result=worst(
+            jnp.max(sol.result),
+            code_where(~jnp.isfinite(rms), RESULTS.nonfinite, RESULTS.successful),
+            code_where(outside, RESULTS.outside_validity, RESULTS.successful),
+        ),
     )
 
 
@@ -532,11 +640,17 @@ def gaf_halfshaft(
     function theorem; a derivative (``jax.grad``, ``jax.jacfwd``) runs one
     program of the values and their Jacobian, compiled once. ``factor``:
     ``"statics"`` (default) or ``"printed"``, see [`gaf`][tripodjax.friction.gaf].
+
+    ``torque``, ``width`` and every field of ``params`` are one number each (for a
+    batch, ``jax.vmap`` over them). Inside ``jit`` a traced input outside its
+    domain (a negative torque or friction constant, a width ≤ 0) makes
+    ``result`` ``outside_validity``, a NaN one ``nonfinite``.
     """
     check_layout(layout, one=True)
     _check_load(torque, layout.R)
     _check_params(params)
     _check_model(model, width, factor)
+    _check_one_number(torque=torque, params=params, width=width)
     solver = solvers.resolve_legacy(solver, fidelity)  # fidelity: the older spelling
     n_theta = _check_n_theta(n_theta, orders="the GAF")
     inputs = GAFInputs(torque, params, model, width, factor)

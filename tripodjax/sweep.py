@@ -415,8 +415,9 @@ def sweep(
             when every output comes from the series (21 845 layouts with the
             default 8 nodes, at any n_theta).
         gaf: the GAF inputs, a [`GAFInputs`][tripodjax.friction.GAFInputs]
-            (torque, friction constants, model, width), for the GAF outputs
-            from Lee's empirical friction (seed 3.2.15).
+            (torque, friction constants, model, width; one number per field, for
+            every layout), for the GAF outputs from Lee's empirical friction
+            (seed 3.2.15).
         forces: the force model's inputs, a [`ForceInputs`][tripodjax.forces.ForceInputs]
             (one number per field, for every layout), for its outputs
             ``"gaf_sixth_order"``, ``"gaf_ninth_order"``, ``"lts_mean"``,
@@ -466,6 +467,7 @@ def sweep(
     n_theta = _check_n_theta(n_theta)
     if gaf is not None:
         check_instance("gaf", gaf, GAFInputs, "a GAFInputs, e.g. tj.GAFInputs(torque=500.0)")
+        check_one_number("gaf", gaf, "one number for every layout (shape ())")
     if forces is not None:
         check_instance(
             "forces", forces, force_model.ForceInputs, "a ForceInputs, e.g. tj.ForceInputs(500.0)"
