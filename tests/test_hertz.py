@@ -225,7 +225,9 @@ def test_mu_nu_inside_jit_gives_nan_and_a_code_for_bad_cos_tau():
     c = jax.jit(hertz.hertz_coefficients)(bad)
     assert np.isfinite(c.mu_nu[0]) and c.result[0] == hertz.RESULTS.successful
     assert np.all(np.isnan(c.mu_nu[1:])) and np.all(np.isnan(c.kappa[1:]))
-    assert np.all(c.result[1:] == hertz.RESULTS.nonfinite)
+    # a finite cos τ outside [0, 1) is outside the domain; NaN and inf are non-finite
+    assert np.all(c.result[1:4] == hertz.RESULTS.outside_validity)
+    assert np.all(c.result[4:] == hertz.RESULTS.nonfinite)
     assert c.result.dtype == jnp.int32
 
 
@@ -359,7 +361,8 @@ def test_arguments_whose_shapes_do_not_broadcast_are_named():
 
 def test_sizes_outside_their_domain_inside_jit_give_nan_and_a_code():
     """Concrete values are refused at the call; traced ones outside the domain (a negative
-    diameter or pressure) give NaN capacities and ``nonfinite``, never a plausible number."""
+    diameter or pressure) give NaN capacities and ``outside_validity``, never a plausible
+    number."""
     from tripodjax.results import RESULTS
 
     def of(d, P_s):
@@ -367,5 +370,171 @@ def test_sizes_outside_their_domain_inside_jit_give_nan_and_a_code():
 
     for d, P_s in ((-43.5, WORKBOOK["P_s"]), (43.5, -1.0)):
         out = jax.jit(of)(d, P_s)
-        assert math.isnan(float(out.M_s)) and int(out.result) == RESULTS.nonfinite
+        assert math.isnan(float(out.M_s)) and int(out.result) == RESULTS.outside_validity
     assert int(jax.jit(of)(43.5, WORKBOOK["P_s"]).result) == RESULTS.successful
+
+
+# Good values of every input of the traced domain check below, and one bad value per row.
+_GOOD = dict(
+    d=43.5,
+    R=25.55,
+    conformity=1.004,
+    P_s=2350.0,
+    C_s=1.2,
+    gamma=0.1,
+    helix_angle=0.0,
+    pressure_angle=math.pi / 2,
+    n_rollers=3,
+    longitudinal_conformity=0.0,
+    load=5000.0,
+    poisson=0.3,
+    young_modulus=208_000.0,
+    M_max=1000.0,
+    R_over_d=0.6,
+    pressure=1347.0,
+)
+_BAD = [
+    ("d", -20.0),
+    ("R", -25.0),
+    ("conformity", 1.0002),  # above 1 but below MIN_CONFORMITY
+    ("P_s", -4000.0),
+    ("C_s", -1.2),
+    ("gamma", 2.0),  # ≥ π/2
+    ("helix_angle", 2.0),
+    ("pressure_angle", 2.0),
+    ("n_rollers", -3),
+    ("longitudinal_conformity", 1.5),
+    ("load", -5000.0),
+    ("poisson", 0.7),
+    ("poisson", -1.5),
+    ("young_modulus", -208_000.0),
+    ("M_max", -1000.0),
+    ("R_over_d", -0.6),
+    ("pressure", -1347.0),
+]
+# The inputs each output uses: an output outside them stays finite and successful.
+_USES = {
+    "caps": {"d", "R", "conformity", "P_s", "C_s", "gamma", "helix_angle", "pressure_angle"}
+    | {"n_rollers", "longitudinal_conformity"},
+    "contact": {"load", "d", "conformity", "poisson", "young_modulus"},
+    "d_min": {"M_max", "R_over_d", "conformity", "P_s", "C_s", "n_rollers", "pressure_angle"}
+    | {"helix_angle", "longitudinal_conformity"},
+    "torque": {"pressure", "d", "R", "C_s", "n_rollers", "pressure_angle", "helix_angle", "gamma"},
+}
+
+
+@jax.jit
+@jax.vmap
+def _every_hertz_function(x):
+    angles = dict(pressure_angle=x["pressure_angle"], helix_angle=x["helix_angle"])
+    common = dict(C_s=x["C_s"], n_rollers=x["n_rollers"], **angles)
+    caps = hertz.capacities(
+        x["d"],
+        x["R"],
+        conformity=x["conformity"],
+        P_s=x["P_s"],
+        P_d=0.6 * x["P_s"],
+        P_sd=0.85 * x["P_s"],
+        gamma=x["gamma"],
+        longitudinal_conformity=x["longitudinal_conformity"],
+        **common,
+    )
+    contact = hertz.roller_contact(
+        x["load"],
+        x["d"],
+        conformity=x["conformity"],
+        young_modulus=x["young_modulus"],
+        poisson=x["poisson"],
+    )
+    d_min, _ = hertz.min_roller_diameter(
+        x["M_max"],
+        R_over_d=x["R_over_d"],
+        conformity=x["conformity"],
+        P_s=x["P_s"],
+        rule="workbook",
+        longitudinal_conformity=x["longitudinal_conformity"],
+        **common,
+    )
+    torque = hertz.torque_at_pressure(
+        x["pressure"], x["d"], x["R"], C_p=514.6, gamma=x["gamma"], **common
+    )
+    return {
+        "caps": (caps.M_d, caps.result),
+        "contact": (contact.p_max, contact.result),
+        "d_min": (d_min, None),
+        "torque": (torque, None),
+    }
+
+
+def test_traced_inputs_outside_their_domain_give_nan_and_outside_validity():
+    """Inside jit every hertz function flags a finite input outside its domain: NaN, and
+    ``outside_validity`` where it returns a code (a NaN input stays ``nonfinite``); before, a
+    negative d or P_s, γ or ζ ≥ π/2, ν_P = 0.7… gave the plausible number, result 0."""
+    rows = [dict(_GOOD)] + [{**_GOOD, name: value} for name, value in _BAD]
+    rows.append({**_GOOD, "d": np.nan})
+    batch = {k: np.array([row[k] for row in rows]) for k in _GOOD}
+    out = jax.device_get(_every_hertz_function(batch))
+    for i, bad in enumerate([None, *(name for name, _ in _BAD), "nan d"]):
+        for output, (value, code) in out.items():
+            if bad is None or (bad not in _USES[output] and bad != "nan d"):
+                assert np.isfinite(value[i]), (bad, output)
+                assert code is None or code[i] == hertz.RESULTS.successful, (bad, output)
+            elif bad == "nan d":
+                if "d" in _USES[output]:
+                    assert np.isnan(value[i]), output
+                    assert code is None or code[i] == hertz.RESULTS.nonfinite, output
+            else:
+                assert np.isnan(value[i]), (bad, output, value[i])
+                assert code is None or code[i] == hertz.RESULTS.outside_validity, (bad, output)
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda: hertz.roller_contact(100.0, 20.0, conformity=1.004, poisson=0.7), "poisson"),
+        (lambda: hertz.roller_contact(100.0, 20.0, conformity=1.004, young_modulus=-1.0), "young"),
+        (lambda: hertz.capacities(43.5, 25.55, gamma=2.0, **WORKBOOK), "0 ≤ gamma < π/2"),
+        (
+            lambda: hertz.torque_at_pressure(1347.0, -43.5, 25.55, C_p=514.6, C_s=1.2),
+            "d = -43.5 is outside the allowed range: d > 0",
+        ),
+        (
+            lambda: hertz.min_roller_diameter(
+                1000.0, R_over_d=0.6, conformity=1.004, P_s=-4000.0, C_s=1.2, rule="workbook"
+            ),
+            "P_s = -4000.0 is outside the allowed range: P_s > 0",
+        ),
+        (lambda: hertz.contact_geometry(1.004, 1.5), "longitudinal_conformity = 1.5"),
+        (lambda: hertz.hertz_coefficients([]), "cos_tau is empty (shape (0,))"),
+        (lambda: hertz.capacities([], 25.55, **WORKBOOK), "d is empty (shape (0,))"),
+        (lambda: hertz.roller_contact([], 43.5, conformity=1.002), "load is empty"),
+        (lambda: hertz.elliptic_integrals(np.zeros((2, 0))), "m is empty (shape (2, 0))"),
+    ],
+)
+def test_concrete_inputs_outside_their_domain_or_empty_are_refused_in_one_line(call, message):
+    with pytest.raises(ValueError) as info:
+        call()
+    assert message in str(info.value) and "\n" not in str(info.value)
+
+
+def test_lists_work_as_arrays():
+    caps = hertz.capacities([43.5, 44.0], 25.55, **WORKBOOK)
+    np.testing.assert_allclose(
+        caps.M_s, [float(hertz.capacities(d, 25.55, **WORKBOOK).M_s) for d in (43.5, 44.0)]
+    )
+    cos_tau = hertz.contact_geometry([1.004, 1.005]).cos_tau
+    np.testing.assert_allclose(cos_tau, [1 / (2 * c - 1) for c in (1.004, 1.005)], rtol=1e-12)
+    p = hertz.roller_contact([100.0, 800.0], 20.0, conformity=1.004).p_max
+    assert float(p[1]) == pytest.approx(2 * float(p[0]), rel=1e-12)  # p ∝ Q^(1/3)
+    np.testing.assert_allclose(hertz.hertz_coefficients([0.0]).kappa, [1.0])
+    d_min, _ = hertz.min_roller_diameter([900.0], R_over_d=0.6, conformity=1.004, P_s=2350, C_s=1)
+    assert np.shape(d_min) == (1,)
+
+
+def test_the_pressure_rises_with_an_infinite_slope_from_zero_load():
+    """p_max ∝ Q^(1/3): its slope at Q = 0 is +∞ (NaN before); 0 beside it for the size."""
+    contact = jax.jacfwd(lambda q: hertz.roller_contact(q, 20.0, conformity=1.004))(0.0)
+    assert contact.p_max == np.inf and contact.a == np.inf and contact.b == np.inf
+    assert jax.grad(lambda q: hertz.roller_contact(q, 20.0, conformity=1.004).p_max)(0.0) == np.inf
+    by_d = jax.grad(lambda d: hertz.roller_contact(0.0, d, conformity=1.004).p_max)(20.0)
+    assert float(by_d) == 0.0

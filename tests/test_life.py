@@ -482,3 +482,67 @@ def test_life_of_small_inputs_compiles_for_latency_and_of_large_ones_for_through
     nested = jax.jit(lambda m: life.life_hours(m, *spectrum))(1733.0)
     np.testing.assert_allclose(row, float(one), rtol=1e-12)
     assert float(nested) == pytest.approx(float(one), rel=1e-12)
+
+
+@jax.jit
+@jax.vmap
+def _life_cases(x):
+    spectrum = life.LoadSpectrum(
+        torque=jnp.stack([x["torque0"], 400.0]),
+        speed=jnp.array([300.0, 800.0]),
+        vehicle_speed=jnp.array([40.0, 90.0]),
+        share=jnp.stack([x["share0"], x["share1"]]),
+    )
+    conditions = life.WorkingConditions(
+        angle=jnp.stack([x["angle0"], 0.1]), share=jnp.stack([x["w0"], x["w1"]])
+    )
+    out = life.joint_life(
+        x["d"], x["R"], spectrum, conditions, conformity=1.004, P_d=x["P_d"], C_s=1.2
+    )
+    hours = life.life_hours(x["P_d"], spectrum.torque, spectrum.speed, spectrum.share)
+    return out.km, out.result, hours
+
+
+def test_traced_inputs_outside_their_domain_give_a_nan_life_and_outside_validity():
+    """Before: a negative d gave the life of +d, R or P_d < 0 an infinite one, an angle of 2 rad
+    1.7e-17 km, shares of [−0.5, 1.5] or [0.2, 0.2] a plausible one, all ``successful``."""
+    good = dict(d=20.0, R=25.0, P_d=2400.0, torque0=900.0, share0=0.5, share1=0.5)
+    good.update(angle0=0.2, w0=0.5, w1=0.5)
+    bad = [
+        {"d": -20.0},
+        {"R": -25.0},
+        {"P_d": -2400.0},
+        {"torque0": -900.0},
+        {"share0": -0.5, "share1": 1.5},
+        {"share0": 0.2, "share1": 0.2},
+        {"angle0": 2.0},
+        {"w0": -0.5, "w1": 1.5},
+        {"w0": 0.2, "w1": 0.2},
+    ]
+    rows = [good] + [{**good, **b} for b in bad] + [{**good, "torque0": np.nan}]
+    km, result, hours = jax.device_get(
+        _life_cases({k: np.array([r[k] for r in rows]) for k in good})
+    )
+    assert np.isfinite(km[0]) and result[0] == hertz.RESULTS.successful and np.isfinite(hours[0])
+    assert np.all(np.isnan(km[1:]))
+    assert np.all(result[1:-1] == hertz.RESULTS.outside_validity), result
+    assert result[-1] == hertz.RESULTS.nonfinite
+    # life_hours (no code): NaN for its own inputs outside (P_d, a torque, the shares)
+    assert np.all(np.isnan(hours[[3, 4, 5, 6, -1]])) and np.all(np.isfinite(hours[[1, 2, 7]]))
+
+
+def test_joint_life_takes_arrays_that_broadcast_and_names_those_that_do_not():
+    spectrum, conditions = spectrum_and_conditions()
+    d = np.array([43.5, 45.0])
+    both = life.joint_life(d, 25.55, spectrum, conditions, **WORKBOOK)
+    assert both.km.shape == (2,) and both.hours_per_condition.shape == (2, 5)
+    assert both.damage_per_case.shape == (2, 3) and both.result.shape == (2,)
+    for i in range(2):
+        one = life.joint_life(d[i], 25.55, spectrum, conditions, **WORKBOOK)
+        assert float(both.km[i]) == pytest.approx(float(one.km), rel=1e-12)
+        np.testing.assert_allclose(both.damage_per_condition[i], one.damage_per_condition)
+    with pytest.raises(ValueError, match=r"^the arguments have shapes d \(2,\), R \(3,\); "):
+        life.joint_life(d, np.full(3, 25.55), spectrum, conditions, **WORKBOOK)
+    with pytest.raises(ValueError, match=r"^torque is empty \(shape \(0,\)\)"):
+        life.life_hours(1000.0, [], [], [])
+    assert float(life.life_hours(1505.0, [1505.0], [730.0], [1.0])) == pytest.approx(500.0)

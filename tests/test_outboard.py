@@ -393,7 +393,8 @@ def test_the_balls_fit_on_their_pitch_circle():
             call()
         assert str(info.value) == expected
     assert np.isfinite(float(outboard.capacities(joint, n_balls=10).M_s))
-    outboard.min_ball_diameter(joint, 1154.0, R_over_d=1.65, C_s=1.35, n_balls=11)
+    # ... but its R_over_d must hold the balls: 1.65 > 1/(2 sin(π/10)) = 1.618, < 1.775 for 11
+    outboard.min_ball_diameter(joint, 1154.0, R_over_d=1.65, C_s=1.35, n_balls=10)
     # on the limit (touching balls) is refused, just inside it allowed; arrays name the index
     touching = outboard.FixedJoint(**{**JOINT, "d": np.array([10.0, limit])})
     with pytest.raises(ValueError, match=r"^FixedJoint\.d\[1\] = .* 11 balls on FixedJoint\.R = "):
@@ -404,12 +405,57 @@ def test_the_balls_fit_on_their_pitch_circle():
 
 def test_overlapping_balls_inside_jit_give_nan_and_a_code():
     """The fit is checked where d and R are concrete; where traced, balls that would overlap
-    (d ≥ 2R sin(π/6) = R) give NaN capacities and ``nonfinite``, not 33 549 N·m."""
+    (d ≥ 2R sin(π/6) = R) give NaN capacities and ``outside_validity``, not 33 549 N·m."""
     from tripodjax.results import RESULTS
 
     def of(d):
         return outboard.capacities(outboard.FixedJoint(**{**JOINT, "d": d}))
 
     out = jax.jit(of)(40.0)
-    assert np.isnan(float(out.M_s)) and int(out.result) == RESULTS.nonfinite
+    assert np.isnan(float(out.M_s)) and int(out.result) == RESULTS.outside_validity
     assert int(jax.jit(of)(JOINT["d"]).result) == RESULTS.successful
+
+
+def test_traced_joint_inputs_outside_their_domain_give_nan_and_outside_validity():
+    """Before: a tolerance of −2 gave km = −93 126 with result 0, M_max = −1000 a safety of
+    −6.99, R_over_d = 0.6 (six balls overlapping on their pitch circle) d = 17.19 mm."""
+    spectrum = life.LoadSpectrum(np.array([1154.0]), np.array([100.0]), np.array([28.0]), [1.0])
+    conditions = life.WorkingConditions(np.radians(ANGLES_DEG), SHARES)
+
+    @jax.jit
+    @jax.vmap
+    def run(tolerance, M_max, R_over_d):
+        joint = outboard.FixedJoint(**JOINT, tolerance=tolerance)
+        out = outboard.joint_life(joint, spectrum, conditions)
+        d_min, R_min = outboard.min_ball_diameter(joint, 1000.0, R_over_d=R_over_d, C_s=1.35)
+        return out.km, out.result, outboard.static_safety(joint, M_max), d_min, R_min
+
+    km, result, safety, d_min, R_min = jax.device_get(
+        run(
+            np.array([0.15, -2.0, 0.15]),
+            np.array([1000.0, 1000.0, -1000.0]),
+            np.array([1.65, 1.65, 0.6]),
+        )
+    )
+    assert np.isfinite(km[0]) and result[0] == hertz.RESULTS.successful
+    assert np.isnan(km[1]) and result[1] == hertz.RESULTS.outside_validity
+    assert np.isfinite(safety[0]) and np.isnan(safety[2])
+    assert np.isfinite(d_min[0]) and np.isnan(d_min[2]) and np.isnan(R_min[2])
+    joint = outboard.FixedJoint(**JOINT)
+    with pytest.raises(
+        ValueError,
+        match=r"^R_over_d = 0\.6 is outside the allowed range: R_over_d > 1/\(2·sin\(π/n_balls\)\) "
+        r"= 1 for 6 balls",
+    ):
+        outboard.min_ball_diameter(joint, 1000.0, R_over_d=0.6, C_s=1.35)
+    with pytest.raises(ValueError, match="M_max = -1000.0 is outside the allowed range: M_max > 0"):
+        outboard.static_safety(joint, -1000.0)
+
+
+def test_a_joint_whose_fields_do_not_broadcast_is_named():
+    with pytest.raises(
+        ValueError, match=r"^FixedJoint fields have shapes d \(2,\), R \(3,\), conformity \(\)"
+    ):
+        outboard.FixedJoint(**{**JOINT, "d": np.array([18.0, 18.256]), "R": np.full(3, 29.958)})
+    with pytest.raises(ValueError, match=r"^FixedJoint\.tolerance is empty \(shape \(0,\)\)"):
+        outboard.FixedJoint(**JOINT, tolerance=np.array([]))

@@ -213,3 +213,47 @@ def test_bad_inputs_name_the_field(build, message):
     with pytest.raises(ValueError) as info:
         build()
     assert message in str(info.value)
+
+
+def test_a_traced_vehicle_outside_its_domain_gives_nan_load_cycles():
+    """Before: a mass of −937 kg gave M_max_forward = 0.0 inside jit."""
+    modes = workbook_modes()
+
+    @jax.jit
+    @jax.vmap
+    def run(mass, required_km):
+        cycles = vehicle.load_cycles(workbook_vehicle(mass=mass), modes, required_km)
+        return cycles.M_max_forward, cycles.revolutions
+
+    forward, revolutions = run(np.array([937.0, -937.0, 937.0]), np.array([1e5, 1e5, -1e5]))
+    assert np.isfinite(forward[0]) and np.all(np.isfinite(revolutions[0]))
+    assert np.all(np.isnan(forward[1:])) and np.all(np.isnan(revolutions[1:]))
+
+
+@pytest.mark.parametrize(
+    "build, message",
+    [
+        (lambda: workbook_vehicle(cg_height=np.array([])), "Vehicle.cg_height has shape (0,)"),
+        (
+            lambda: workbook_vehicle(mass=np.array([937.0, 1000.0])),
+            "Vehicle.mass has shape (2,); allowed: one number (shape ())",
+        ),
+        (
+            lambda: workbook_vehicle(reverse_ratio=np.ones(2)),
+            "Vehicle.reverse_ratio has shape (2,)",
+        ),
+        (
+            lambda: vehicle.load_cycles(workbook_vehicle(), workbook_modes(), np.array([1e5, 2e5])),
+            "required_km has shape (2,); allowed: one number [km] (shape ()), or an array that "
+            "broadcasts against the cycles' shape (modes, gears + 1, 4) = (3, 7, 4)",
+        ),
+        (
+            lambda: vehicle.load_cycles(workbook_vehicle(), workbook_modes(), np.array([])),
+            "required_km is empty (shape (0,))",
+        ),
+    ],
+)
+def test_one_vehicle_has_one_number_per_field(build, message):
+    with pytest.raises(ValueError) as info:
+        build()
+    assert message in str(info.value) and "\n" not in str(info.value)

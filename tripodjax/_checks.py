@@ -34,6 +34,7 @@ import sys
 import typing
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 # --------------------------------------------------------------------------- domains
@@ -316,6 +317,11 @@ def check_working_angle(name, value):
     )
 
 
+SHARE_TOLERANCE = 1e-6
+"""Shares sum to 1 within this (`check_shares`; traced, `outside_shares` widens it by the dtype's
+rounding of the sum)."""
+
+
 def check_shares(name, share, axis=-1):
     """Non-negative finite shares that sum to 1 (along ``axis`` for an array; the error names
     the first slice that does not, e.g. ``share[1, :]``)."""
@@ -324,7 +330,7 @@ def check_shares(name, share, axis=-1):
         return
     check_non_negative(name, share)
     total = np.sum(array, axis=axis) if array.ndim else array
-    bad = np.abs(total - 1.0) > 1e-6
+    bad = np.abs(total - 1.0) > SHARE_TOLERANCE
     if np.any(bad):
         if np.ndim(total):  # name the slice along ``axis`` that does not sum to 1
             index = [str(int(i)) for i in np.argwhere(bad)[0]]
@@ -384,9 +390,13 @@ def check_shapes(shapes, prefix="", allowed="numbers, or arrays whose shapes bro
     ``"Layout fields have shapes R (3,), l (2,), gamma0 (); allowed: …"``. Returns the
     broadcast shape.
     """
+    _check_not_empty(shapes, prefix)
+    return _broadcast(shapes, f"{prefix.rstrip('.') or 'the'} fields", allowed)
+
+
+def _check_not_empty(shapes, prefix=""):
     for name, shape in shapes.items():
         check_not_empty(prefix + name, shape)
-    return _broadcast(shapes, f"{prefix.rstrip('.') or 'the'} fields", allowed)
 
 
 def check_not_empty(name, shape):
@@ -399,9 +409,11 @@ def check_not_empty(name, shape):
 
 
 def check_broadcast(**values):
-    """``ValueError`` unless the arguments ``{name: value}`` broadcast together, e.g.
-    ``"the arguments have shapes d (3,), R (2,); allowed: …"``; returns the broadcast shape."""
+    """``ValueError`` unless the arguments ``{name: value}`` broadcast together and none is
+    empty, e.g. ``"the arguments have shapes d (3,), R (2,); allowed: …"`` or ``"d is empty
+    (shape (0,)); …"`` (the rule of `check_shapes`); returns the broadcast shape."""
     shapes = {name: np.shape(value) for name, value in values.items()}
+    _check_not_empty(shapes)
     arrays = {name: shape for name, shape in shapes.items() if shape}  # numbers fit any shape
     return _broadcast(arrays, "the arguments", "numbers, or arrays whose shapes broadcast together")
 
@@ -631,3 +643,82 @@ def check_one_number(name: str, inputs: object, allowed: str) -> None:
             within = jax.tree_util.keystr(path, simple=True, separator=".")
             field = f"{name}.{within}" if within else name  # ``inputs`` a field itself
             raise ValueError(f"{field} has shape {np.shape(leaf)}; allowed: {allowed}")
+
+
+# --------------------------------------------------------------------------- domains, traced too
+
+
+@dataclasses.dataclass(frozen=True)
+class Domain:
+    """One input's domain, written once for both sides of the rule: the interval that the
+    concrete check refuses values outside of at the Python boundary (`Domain.check`) and that
+    flags traced values inside ``jit`` (`Domain.outside`).
+
+    ``wording``: None words the boundary's error as `check_positive` (0 < x),
+    `check_non_negative` (0 ≤ x) or `check_range`; else a callable ``(name, value)``, an
+    existing rule of this module (e.g. `check_conformity`) that refuses exactly the values
+    outside the interval and the non-finite ones.
+    """
+
+    low: float = -math.inf
+    high: float = math.inf
+    low_open: bool = False
+    high_open: bool = False
+    unit: str = ""
+    wording: typing.Callable[[str, typing.Any], object] | None = None
+
+    def check(self, name, value):
+        """A concrete ``value`` (any shape) finite and inside; a traced one passes unchecked."""
+        if self.wording is not None:
+            self.wording(name, value)
+        elif self.low == 0 and self.high == math.inf and self.low_open:
+            check_positive(**{name: value})
+        elif self.low == 0 and self.high == math.inf:
+            check_non_negative(name, value, self.unit)
+        else:
+            check_range(
+                name,
+                value,
+                self.low,
+                self.high,
+                low_open=self.low_open,
+                high_open=self.high_open,
+                unit=self.unit,
+            )
+
+    def outside(self, value):
+        """Where a finite (traced) ``value`` lies outside, elementwise (a JAX bool array). NaN
+        and ±inf are not outside: they are non-finite (``nonfinite``, not ``outside_validity``)."""
+        x = jnp.asarray(value)
+        below = x <= self.low if self.low_open else x < self.low
+        above = x >= self.high if self.high_open else x > self.high
+        return jnp.isfinite(x) & (below | above)
+
+
+def check_domains(domains, **values):
+    """Each concrete value inside the domain ``domains[short name]`` (e.g. the key ``d`` for
+    ``FixedJoint.d``); the error names the full name."""
+    for name, value in values.items():
+        domains[_short(name)].check(name, value)
+
+
+def outside_domains(domains, **values):
+    """Where any (traced) value lies outside its domain ``domains[name]``, broadcast together."""
+    flag = jnp.bool_(False)
+    for name, value in values.items():
+        flag = flag | domains[name].outside(value)
+    return flag
+
+
+def outside_shares(share, axis=-1):
+    """Traced shares, per slice along ``axis``: some finite share negative, or finite shares
+    whose sum is off 1 by more than `SHARE_TOLERANCE` (or, in float32, the rounding of the sum:
+    n·ε). Non-finite shares are not outside (they are ``nonfinite``)."""
+    share = jnp.asarray(share)
+    if not share.ndim:
+        share = share[None]
+    finite = jnp.all(jnp.isfinite(share), axis=axis)
+    eps = float(jnp.finfo(jnp.result_type(share, 0.0)).eps)
+    tolerance = max(SHARE_TOLERANCE, share.shape[axis] * eps)
+    off = jnp.abs(jnp.sum(share, axis=axis) - 1.0) > tolerance
+    return jnp.any(jnp.isfinite(share) & (share < 0), axis=axis) | (finite & off)

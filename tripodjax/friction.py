@@ -37,6 +37,7 @@ from jax.typing import ArrayLike
 
 from tripodjax import joint, solvers
 from tripodjax._checks import (
+    as_array,
     check_broadcast,
     check_choice,
     check_finite,
@@ -108,8 +109,7 @@ class FrictionParams:
             value = getattr(self, name)
             check_non_negative(f"FrictionParams.{name}", value)  # the domain (`_params_outside`)
             check_not_empty(f"FrictionParams.{name}", np.shape(value))
-            if isinstance(value, (list, tuple)):  # an array, one leaf of the pytree
-                object.__setattr__(self, name, np.asarray(value))
+            object.__setattr__(self, name, as_array(value))  # a list: one leaf, an array
 
     def replace(self, **changes: Any) -> "FrictionParams":
         """A copy with some fields changed, e.g. ``params.replace(mu_slp=0.04)``."""
@@ -396,8 +396,7 @@ def _check_one_number(**inputs):
     """The GAF's inputs (its friction constants, width, a halfshaft's torque) one number each:
     an array would line up with the three rollers or the angles, not with a batch."""
     for name, value in inputs.items():
-        value = np.asarray(value) if isinstance(value, (list, tuple)) else value  # one leaf
-        check_one_number(name, value, "one number (jax.vmap over the inputs for a batch)")
+        check_one_number(name, as_array(value), "one number (jax.vmap over the inputs for a batch)")
 
 
 def gaf(
@@ -534,8 +533,7 @@ class GAFInputs:
         for name in ("torque", "width"):
             value = getattr(self, name)
             check_not_empty(name, np.shape(value))
-            if isinstance(value, (list, tuple)):  # an array, one leaf of the pytree
-                object.__setattr__(self, name, np.asarray(value))
+            object.__setattr__(self, name, as_array(value))  # a list: one leaf, an array
 
 
 _GAF_INPUT_KEYS = tuple(jax.tree_util.GetAttrKey(name) for name in ("torque", "params", "width"))

@@ -38,14 +38,15 @@ from jax.typing import ArrayLike
 
 from tripodjax._checks import (
     MIN_CONFORMITY,  # re-exported: hertz.MIN_CONFORMITY
+    Domain,
+    as_array,
     check_broadcast,
     check_choice,
     check_conformity,
+    check_domains,
     check_integer,
-    check_non_negative,
-    check_positive,
-    check_range,
     check_working_angle,
+    outside_domains,
 )
 from tripodjax._compile import latency_bound_at_top_level
 from tripodjax._pytree import pytree_dataclass
@@ -74,6 +75,51 @@ POISSON_STEEL = 0.3
 HERTZ_STEEL = 858.0  # MPa·N^(-1/3)·mm^(2/3): the seed's constant, = (3/2π)(E/(3(1−ν²)))^(2/3)
 _AGM_STEPS = 12
 _KAPPA_MAX_STEPS = 40
+
+_POSITIVE = Domain(0.0, low_open=True)
+_UNIT_INTERVAL = Domain(0.0, 1.0, high_open=True)
+DOMAINS = {
+    **dict.fromkeys(
+        ("d", "R", "C_p", "C_s", "P_s", "P_d", "P_sd", "M_max", "R_over_d", "young_modulus"),
+        _POSITIVE,
+    ),
+    "load": Domain(0.0, unit=" N"),
+    "pressure": Domain(0.0, unit=" MPa"),
+    "conformity": Domain(MIN_CONFORMITY, wording=lambda name, value: check_conformity(value, name)),
+    "longitudinal_conformity": Domain(-1.0, 1.0, low_open=True),
+    "poisson": Domain(-1.0, 0.5, low_open=True, high_open=True),
+    "n_rollers": Domain(1, wording=lambda name, value: check_integer(name, value, minimum=1)),
+    "pressure_angle": Domain(0.0, math.pi / 2, low_open=True, unit=" rad"),
+    "helix_angle": Domain(0.0, math.pi / 2, high_open=True, unit=" rad"),
+    "gamma": Domain(0.0, math.pi / 2, high_open=True, wording=check_working_angle),
+    "cos_tau": _UNIT_INTERVAL,
+    "m": _UNIT_INTERVAL,
+}
+"""Each input's domain, one rule for the concrete check at the boundary (``ValueError``) and
+for the traced flag inside ``jit`` (NaN and ``outside_validity``)."""
+
+
+def _checked(**values):
+    """The arguments at the boundary: each concrete one inside its domain (`DOMAINS`), the
+    arrays broadcasting together and none empty; returned in order, lists as arrays."""
+    check_domains(DOMAINS, **values)
+    check_broadcast(**values)
+    return [as_array(v) for v in values.values()]
+
+
+def _outside(**values):
+    """Where a traced (finite) argument lies outside its domain (`DOMAINS`)."""
+    return outside_domains(DOMAINS, **values)
+
+
+def _code(finite, outside, *codes):
+    """The worst of ``codes``, ``nonfinite`` where not ``finite``, ``outside_validity`` where
+    ``outside`` (a NaN input is ``nonfinite``, a finite one outside its domain ``outside_validity``)."""
+    return worst(
+        *codes,
+        code_where(finite, RESULTS.successful, RESULTS.nonfinite),
+        code_where(outside, RESULTS.outside_validity, RESULTS.successful),
+    )
 
 
 # --------------------------------------------------------------------------- elliptic integrals
@@ -135,7 +181,7 @@ def elliptic_integrals(m: ArrayLike) -> tuple[jax.Array, jax.Array]:
     the arithmetic–geometric mean in JAX; differentiable; any dtype. A concrete
     m outside [0, 1) raises ``ValueError``; a traced one gives NaN.
     """
-    check_range("m", m, 0.0, 1.0, high_open=True)
+    (m,) = _checked(m=m)
     m = jnp.asarray(m, jnp.result_type(m, 0.0))
     m = _nan_unless((m >= 0) & (m < 1), m)
     K, E, _ = _elliptic_agm(m, 1.0 - m)
@@ -233,8 +279,8 @@ class HertzCoefficients:
         mu_nu: the product μν used by the seed's conformity coefficient [–].
         result: per-point code of the κ solve (int32,
             [`RESULTS`][tripodjax.results.RESULTS]): ``successful``,
-            ``max_steps_reached`` or ``nonfinite`` (cos τ outside [0, 1) or
-            non-finite inside ``jit``; the coefficients are then NaN).
+            ``max_steps_reached``, ``outside_validity`` (cos τ outside [0, 1) inside
+            ``jit``) or ``nonfinite`` (cos τ non-finite); the coefficients are then NaN.
     """
 
     kappa: jax.Array
@@ -244,15 +290,13 @@ class HertzCoefficients:
     result: jax.Array
 
 
-def _check_cos_tau(cos_tau, name="cos_tau"):
-    check_range(name, cos_tau, 0.0, 1.0, high_open=True)
-
-
 @functools.partial(latency_bound_at_top_level, small_inputs=True)
 def _hertz_coefficients(cos_tau):
     c = jnp.asarray(cos_tau, jnp.result_type(cos_tau, 0.0))
+    outside = _outside(cos_tau=c)
     c = _nan_unless((c >= 0) & (c < 1), c)
     t, _, E, _, code = jnp.vectorize(_log_kappa)(c)
+    code = worst(code, code_where(outside, RESULTS.outside_validity, RESULTS.successful))
     kappa = jnp.exp(t)
     mu = jnp.cbrt(2.0 * kappa**2 * E / jnp.pi)
     nu = jnp.cbrt(2.0 * E / (jnp.pi * kappa))
@@ -266,10 +310,11 @@ def hertz_coefficients(cos_tau: ArrayLike) -> HertzCoefficients:
     Newton (derivatives from the implicit function theorem); no lookup table.
     cos τ = 0 gives κ = μ = ν = 1; values approach infinity as cos τ → 1.
     A concrete cos τ outside [0, 1) (or non-finite) raises ``ValueError``; a
-    traced one gives NaN coefficients and ``result = RESULTS.nonfinite``.
+    traced one gives NaN coefficients and ``result = RESULTS.outside_validity``
+    (``nonfinite`` for a NaN or infinite one). A number or a non-empty array (a list too).
     Jit-compiled.
     """
-    _check_cos_tau(cos_tau)
+    (cos_tau,) = _checked(cos_tau=cos_tau)
     return _hertz_coefficients(cos_tau)
 
 
@@ -310,15 +355,20 @@ def contact_geometry(
     Ψ ≥ `MIN_CONFORMITY` = 1.0005 (Ψ − 1 ≥ 5·10⁻⁴; the workbook's
     experience range is 1.002–1.008; see
     `tripodjax._checks.check_conformity` for why). A concrete Ψ below it
-    or non-finite raises ``ValueError``; inside ``jit`` a non-finite Ψ or
-    Ψ ≤ 1 gives NaN.
+    or non-finite raises ``ValueError`` (as does a χ_l outside (−1, 1]); inside
+    ``jit`` a non-finite Ψ or χ_l, or one outside its domain, gives NaN. Numbers or
+    non-empty arrays (lists too) that broadcast together.
     """
-    check_conformity(conformity)
-    _check_longitudinal(longitudinal_conformity)
+    conformity, longitudinal_conformity = _checked(
+        conformity=conformity, longitudinal_conformity=longitudinal_conformity
+    )
     conformity = jnp.asarray(conformity, jnp.result_type(conformity, 0.0))
-    conformity = _nan_unless(jnp.isfinite(conformity) & (conformity > 1), conformity)
-    chi_q = -1.0 / conformity
-    chi_l = jnp.broadcast_to(jnp.asarray(longitudinal_conformity, chi_q.dtype), chi_q.shape)
+    longitudinal = jnp.asarray(longitudinal_conformity, conformity.dtype)
+    inside = ~_outside(conformity=conformity, longitudinal_conformity=longitudinal)
+    ok = inside & jnp.isfinite(conformity) & jnp.isfinite(longitudinal)
+    chi_q = -1.0 / _nan_unless(ok, conformity)
+    chi_l = _nan_unless(ok, longitudinal)
+    chi_q, chi_l = jnp.broadcast_arrays(chi_q, chi_l)
     denominator = 2.0 + chi_q + chi_l
     return ContactGeometry(
         chi_q=chi_q,
@@ -326,10 +376,6 @@ def contact_geometry(
         d_sum_rho=2.0 * denominator,
         cos_tau=jnp.abs(chi_q - chi_l) / denominator,
     )
-
-
-def _check_longitudinal(value, name="longitudinal_conformity"):
-    check_range(name, value, -1.0, 1.0, low_open=True)
 
 
 def _conformity_coefficient(conformity, longitudinal_conformity=0.0):
@@ -355,19 +401,15 @@ class Contact:
             conformal groove direction [mm].
         b: semi-axis along the track, in the rolling direction [mm].
         result: per-point code (int32, [`RESULTS`][tripodjax.results.RESULTS]):
-            the κ solve's, or ``nonfinite`` where an input or the answer is
-            not finite (the fields are then NaN).
+            the κ solve's, ``nonfinite`` where an input or the answer is not
+            finite, ``outside_validity`` where a (traced) input lies outside its
+            domain (the fields are then NaN).
     """
 
     p_max: jax.Array
     a: jax.Array
     b: jax.Array
     result: jax.Array
-
-
-def _check_elastic(young_modulus, poisson):
-    check_positive(young_modulus=young_modulus)
-    check_range("poisson", poisson, -1.0, 0.5, low_open=True, high_open=True)
 
 
 def roller_contact(
@@ -384,47 +426,44 @@ def roller_contact(
     p_max = 3Q / (2π a b); for steel this is the seed's 858/(μν) (Q Σρ²)^(1/3).
 
     Args: load Q ≥ 0 [N]; d > 0 [mm]; conformity Ψ ≥ 1.0005; young_modulus
-    E > 0 [MPa]; poisson ν_P in (−1, 0.5) [–]. All finite.
+    E > 0 [MPa]; poisson ν_P in (−1, 0.5) [–]. All finite; numbers or non-empty
+    arrays (lists too) that broadcast together. Concrete values outside raise
+    ``ValueError``; traced ones give NaN and ``outside_validity`` (``nonfinite``
+    for a NaN or infinite input).
+
+    At Q = 0 the pressure and semi-axes are 0 and their derivatives with respect to Q
+    are +∞ (p_max ∝ Q^(1/3)): the true slope, not NaN.
     """
-    check_non_negative("load", load, " N")
-    check_positive(d=d)
-    check_conformity(conformity)
-    _check_elastic(young_modulus, poisson)
-    check_broadcast(
+    load, d, conformity, young_modulus, poisson = _checked(
         load=load, d=d, conformity=conformity, young_modulus=young_modulus, poisson=poisson
     )
     geometry = contact_geometry(conformity)
     coefficients = _hertz_coefficients(geometry.cos_tau)
     sum_rho = geometry.d_sum_rho / d
-    k = jnp.cbrt(3.0 * load * (1.0 - poisson**2) / (young_modulus * sum_rho))
+    compliance = 3.0 * (1.0 - poisson**2) / (young_modulus * sum_rho)  # k³/Q [mm³/N]
+    k = jnp.cbrt(load * compliance)
     a, b = coefficients.mu * k, coefficients.nu * k
-    area = jnp.where(a * b > 0, a * b, 1.0)
-    p_max = jnp.where(a * b > 0, 1.5 * load / (jnp.pi * area), 0.0)
-    ok = _finite(load, d, young_modulus, poisson, p_max, a, b)
-    code = worst(coefficients.result, code_where(ok, RESULTS.successful, RESULTS.nonfinite))
+    # p_max = 3Q/(2π a b) = 3 Q^(1/3) / (2π μν (k³/Q)^(2/3)): 0 at Q = 0 with the slope +∞
+    p_max = 1.5 * jnp.cbrt(load) / (jnp.pi * coefficients.mu_nu * jnp.cbrt(compliance) ** 2)
+    outside = _outside(
+        load=load, d=d, conformity=conformity, young_modulus=young_modulus, poisson=poisson
+    )
+    finite = _finite(load, d, young_modulus, poisson, p_max, a, b)
+    ok = finite & ~outside
     return Contact(
-        p_max=_nan_unless(ok, p_max), a=_nan_unless(ok, a), b=_nan_unless(ok, b), result=code
+        p_max=_nan_unless(ok, p_max),
+        a=_nan_unless(ok, a),
+        b=_nan_unless(ok, b),
+        result=_code(finite, outside, coefficients.result),
     )
 
 
 # --------------------------------------------------------------------------- capacities and sizing
 
 
-def _check_n_rollers(n_rollers):
-    check_integer("n_rollers", n_rollers, minimum=1)
-
-
-_NO_GAMMA = object()
-
-
-def _check_angles(pressure_angle, helix_angle, gamma=_NO_GAMMA):
-    check_range("pressure_angle", pressure_angle, 0.0, math.pi / 2, low_open=True, unit=" rad")
-    check_range("helix_angle", helix_angle, 0.0, math.pi / 2, high_open=True, unit=" rad")
-    if gamma is not _NO_GAMMA:
-        check_working_angle("gamma", gamma)
-
-
 def _torque_at_pressure(pressure, d, R, C_p, C_s, n_rollers, pressure_angle, helix_angle, gamma):
+    """M(p) [N·m]; NaN where an input is not finite or lies outside its domain."""
+    outside = _outside(**locals())  # every parameter has its domain (DOMAINS)
     load_factor = (pressure / (C_s * C_p)) ** 3
     torque_nmm = (
         0.5
@@ -437,7 +476,7 @@ def _torque_at_pressure(pressure, d, R, C_p, C_s, n_rollers, pressure_angle, hel
         * jnp.cos(helix_angle)
     )
     ok = _finite(pressure, d, R, C_p, C_s, n_rollers, pressure_angle, helix_angle, gamma)
-    return _nan_unless(ok, torque_nmm / 1000.0)
+    return _nan_unless(ok & ~outside, torque_nmm / 1000.0)
 
 
 def torque_at_pressure(
@@ -457,25 +496,11 @@ def torque_at_pressure(
     Args: pressure p ≥ 0 [MPa]; d, R > 0 [mm]; C_p > 0
     [MPa·N^(-1/3)·mm^(2/3)]; C_s > 0 [–]; n_rollers an integer ≥ 1;
     pressure_angle ε in (0, π/2], helix_angle ζ in [0, π/2), gamma in
-    [0, π/2) [rad]. All finite; inside ``jit`` a non-finite input gives NaN.
+    [0, π/2) [rad]. All finite; numbers or non-empty arrays (lists too) that
+    broadcast together. Inside ``jit`` a non-finite input, or one outside its
+    domain, gives NaN.
     """
-    check_non_negative("pressure", pressure, " MPa")
-    check_positive(d=d, R=R, C_p=C_p, C_s=C_s)
-    _check_n_rollers(n_rollers)
-    _check_angles(pressure_angle, helix_angle, gamma)
-    check_broadcast(
-        pressure=pressure,
-        d=d,
-        R=R,
-        C_p=C_p,
-        C_s=C_s,
-        pressure_angle=pressure_angle,
-        helix_angle=helix_angle,
-        gamma=gamma,
-    )
-    return _torque_at_pressure(
-        pressure, d, R, C_p, C_s, n_rollers, pressure_angle, helix_angle, gamma
-    )
+    return _torque_at_pressure(*_checked(**locals()))  # the parameters, in order
 
 
 @pytree_dataclass
@@ -490,8 +515,9 @@ class Capacities:
         C_p: conformity coefficient [MPa·N^(-1/3)·mm^(2/3)].
         mu_nu: Hertz product μν [–].
         result: per-point code (int32, [`RESULTS`][tripodjax.results.RESULTS]):
-            the κ solve's, or ``nonfinite`` where an input or a capacity is
-            not finite (that capacity is then NaN).
+            the κ solve's, ``nonfinite`` where an input or a capacity is not
+            finite (that capacity is then NaN), ``outside_validity`` where a
+            (traced) input lies outside its domain (the capacities are then NaN).
     """
 
     M_s: jax.Array
@@ -532,19 +558,15 @@ def capacities(
         longitudinal_conformity: χ_l in (−1, 1] (0 for straight tracks; see
             [`contact_geometry`][tripodjax.hertz.contact_geometry]).
 
-    Every value finite; concrete values are checked (``ValueError`` /
-    ``TypeError`` naming the argument). Inside ``jit`` a non-finite input
-    gives NaN capacities and ``result = RESULTS.nonfinite``.
+    Every value finite; numbers or non-empty arrays (lists too) that broadcast
+    together; concrete values are checked (``ValueError`` / ``TypeError`` naming
+    the argument). Inside ``jit`` a non-finite input gives NaN capacities and
+    ``result = RESULTS.nonfinite``, a finite one outside its domain NaN and
+    ``outside_validity``.
     Differentiable w.r.t. d, R, the conformity and the pressures; any dtype.
     """
     arguments = dict(locals())  # the parameters, as given
-    check_positive(d=d, R=R, P_s=P_s, P_d=P_d, P_sd=P_sd, C_s=C_s)
-    check_conformity(conformity)
-    _check_n_rollers(n_rollers)
-    _check_angles(pressure_angle, helix_angle, gamma)
-    _check_longitudinal(longitudinal_conformity)
-    check_broadcast(**arguments)
-    return _capacities(**arguments)
+    return _capacities(**dict(zip(arguments, _checked(**arguments), strict=True)))
 
 
 @functools.partial(latency_bound_at_top_level, small_inputs=True)
@@ -564,22 +586,23 @@ def _capacities(
 ):
     """`capacities` past its checks: one compiled program (its operations one by one compiled
     each on a first call)."""
+    arguments = dict(locals())  # every parameter has its domain (DOMAINS)
     C_p, product, kappa_code = _conformity_coefficient(conformity, longitudinal_conformity)
     common = (C_p, C_s, n_rollers, pressure_angle, helix_angle)
     M_s = _torque_at_pressure(P_s, d, R, *common, 0.0)
     M_d = _torque_at_pressure(P_d, d, R, *common, gamma)
     M_sd = _torque_at_pressure(P_sd, d, R, *common, gamma)
-    # The sizes, pressures and C_s > 0 (checked where concrete, here where traced: NaN outside).
-    inside = (d > 0) & (R > 0) & (P_s > 0) & (P_d > 0) & (P_sd > 0) & (C_s > 0)
-    M_s, M_d, M_sd = (_nan_unless(inside, M) for M in (M_s, M_d, M_sd))
-    ok = _finite(M_s, M_d, M_sd)
+    # Every input inside its domain (checked where concrete, here where traced: NaN outside).
+    outside = _outside(**arguments)
+    finite = _finite(M_s, M_d, M_sd)
+    M_s, M_d, M_sd = (_nan_unless(~outside, M) for M in (M_s, M_d, M_sd))
     return Capacities(
         M_s=M_s,
         M_d=M_d,
         M_sd=M_sd,
         C_p=C_p,
         mu_nu=product,
-        result=worst(kappa_code, code_where(ok, RESULTS.successful, RESULTS.nonfinite)),
+        result=_code(finite, outside, kappa_code),
     )
 
 
@@ -611,28 +634,29 @@ def min_roller_diameter(
 
     Args: M_max, R_over_d, P_s, C_s > 0; conformity Ψ ≥ 1.0005; n_rollers an
     integer ≥ 1; angles and longitudinal_conformity as
-    [`capacities`][tripodjax.hertz.capacities]; all finite (NaN inside ``jit``
-    for a non-finite input).
+    [`capacities`][tripodjax.hertz.capacities]; all finite; numbers or non-empty
+    arrays (lists too) that broadcast together. Inside ``jit`` a non-finite input,
+    or one outside its domain, gives NaN (this function has no result code).
 
     Returns:
         (d_min, R_min) with R_min = (R/d)·d_min.
     """
     check_choice("rule", rule, SIZING_RULES)
-    check_positive(M_max=M_max, R_over_d=R_over_d, P_s=P_s, C_s=C_s)
-    check_conformity(conformity)
-    _check_n_rollers(n_rollers)
-    _check_angles(pressure_angle, helix_angle)
-    _check_longitudinal(longitudinal_conformity)
-    check_broadcast(
+    arguments = dict(
         M_max=M_max,
         R_over_d=R_over_d,
         conformity=conformity,
         P_s=P_s,
         C_s=C_s,
+        n_rollers=n_rollers,
         pressure_angle=pressure_angle,
         helix_angle=helix_angle,
         longitudinal_conformity=longitudinal_conformity,
     )
+    M_max, R_over_d, conformity, P_s, C_s, n_rollers, pressure_angle, helix_angle, _ = _checked(
+        **arguments
+    )
+    outside = _outside(**arguments)
     C_p = _conformity_coefficient(conformity, longitudinal_conformity)[0]
     geometry_factor = n_rollers * R_over_d * jnp.sin(pressure_angle) * jnp.cos(helix_angle)
     torque_nmm = 1000.0 * M_max
@@ -641,5 +665,5 @@ def min_roller_diameter(
     else:
         d3 = (C_p * C_s / P_s) ** 2 * torque_nmm / geometry_factor
     ok = _finite(M_max, R_over_d, P_s, C_s, C_p, n_rollers, pressure_angle, helix_angle, d3)
-    d_min = _nan_unless(ok, jnp.cbrt(d3))
+    d_min = _nan_unless(ok & ~outside, jnp.cbrt(d3))
     return d_min, d_min * R_over_d  # (R/d)·d_min

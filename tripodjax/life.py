@@ -46,28 +46,31 @@ import numpy as np
 from jax.typing import ArrayLike
 
 from tripodjax._checks import (
+    Domain,
+    as_array,
     check_broadcast,
     check_choice,
-    check_non_negative,
-    check_positive,
+    check_domains,
     check_real,
     check_shares,
     check_working_angle,
     checked_pytree_dataclass,
+    outside_domains,
+    outside_shares,
 )
 from tripodjax._compile import latency_bound_at_top_level
 from tripodjax._pytree import pytree_dataclass
+from tripodjax.hertz import DOMAINS as HERTZ_DOMAINS
 from tripodjax.hertz import (
     _all_finite,
-    _check_angles,
-    _check_longitudinal,
-    _check_n_rollers,
+    _checked,
+    _code,
     _conformity_coefficient,
+    _finite,
     _nan_unless,
     _torque_at_pressure,
-    check_conformity,
 )
-from tripodjax.results import RESULTS, code_where, worst
+from tripodjax.hertz import _outside as _outside_hertz
 
 __all__ = [
     "ANGLE_LAWS",
@@ -89,6 +92,16 @@ ANGLE_LAWS = ("workbook", "seed")
 # g(γ) = exp(−(a γ + b γ²)) through the workbook's 164088/244574 at 6.5° and 99204/244574 at 12.8°.
 WORKBOOK_ANGLE_A = 2.9805657453896677  # 1/rad
 WORKBOOK_ANGLE_B = 4.738165269969751  # 1/rad²
+
+DOMAINS = {
+    "M_d": Domain(0.0, low_open=True),
+    "torque": Domain(0.0, unit=" N·m"),
+    "speed": Domain(0.0, unit=" rpm"),
+    "vehicle_speed": Domain(0.0, unit=" km/h"),
+    "angle": HERTZ_DOMAINS["gamma"],  # a working angle, 0 ≤ γ < π/2 rad
+}
+"""The spectrum's and conditions' domains (one rule for the concrete check and the traced
+flag); the shares sum to 1 (`check_shares`, traced `outside_shares`)."""
 
 
 def _angle_factor(gamma, law):
@@ -132,14 +145,22 @@ def life_hours(M_d: ArrayLike, torque: ArrayLike, speed: ArrayLike, share: Array
     ``M_d`` [N·m] may carry leading axes (one life per entry). A case with zero
     torque or speed does no damage; a spectrum that does none lives for ever
     (``inf``). M_d > 0, torque ≥ 0, speed ≥ 0, shares ≥ 0 summing to 1, all
-    finite; inside ``jit`` a non-finite input gives NaN.
+    finite; numbers or non-empty arrays (lists too). Inside ``jit`` a non-finite
+    input gives NaN, as does one outside its domain (a negative torque, shares
+    that do not sum to 1): this function has no result code.
     """
-    check_positive(M_d=M_d)
-    check_non_negative("torque", torque, " N·m")
-    check_non_negative("speed", speed, " rpm")
-    check_shares("share", share)
+    check_domains(DOMAINS, M_d=M_d, torque=torque, speed=speed)
+    check_broadcast(M_d=M_d)  # not empty
     check_broadcast(torque=torque, speed=speed, share=share)  # the cases, on the last axis
+    check_shares("share", share)
+    M_d, torque, speed, share = (as_array(x) for x in (M_d, torque, speed, share))
     return _life_hours(M_d, torque, speed, share)
+
+
+def _spectrum_outside(torque, speed, share, vehicle_speed=0.0):
+    """Traced: per spectrum (over the last axis) a case outside its domain or shares off 1."""
+    cases = outside_domains(DOMAINS, torque=torque, speed=speed, vehicle_speed=vehicle_speed)
+    return jnp.any(jnp.atleast_1d(cases), axis=-1) | outside_shares(share)
 
 
 @functools.partial(latency_bound_at_top_level, small_inputs=True)
@@ -147,7 +168,8 @@ def _life_hours(M_d, torque, speed, share):
     """`life_hours` past its checks: one compiled program."""
     rate, _ = _damage_rate(M_d, torque, speed, share)
     ok = jnp.all(_all_finite(M_d, torque, speed, share))
-    return _nan_unless(ok, _hours(rate))
+    outside = outside_domains(DOMAINS, M_d=M_d) | _spectrum_outside(torque, speed, share)
+    return _nan_unless(ok & ~outside, _hours(rate))
 
 
 def _check_vectors(owner, fields):
@@ -190,9 +212,10 @@ class LoadSpectrum:
     share: ArrayLike
 
     def __post_init__(self) -> None:
-        check_non_negative("LoadSpectrum.torque", self.torque, " N·m")
-        check_non_negative("LoadSpectrum.speed", self.speed, " rpm")
-        check_non_negative("LoadSpectrum.vehicle_speed", self.vehicle_speed, " km/h")
+        check_domains(
+            DOMAINS,
+            **{f"LoadSpectrum.{k}": getattr(self, k) for k in ("torque", "speed", "vehicle_speed")},
+        )
         check_real("LoadSpectrum.share", self.share)
         _check_vectors(  # the shape before the shares: the share rule is that of one spectrum
             "LoadSpectrum",
@@ -218,7 +241,7 @@ class WorkingConditions:
     share: ArrayLike
 
     def __post_init__(self) -> None:
-        check_working_angle("WorkingConditions.angle", self.angle)
+        check_domains(DOMAINS, **{"WorkingConditions.angle": self.angle})
         check_real("WorkingConditions.share", self.share)
         _check_vectors("WorkingConditions", {"angle": self.angle, "share": self.share})
         check_shares("WorkingConditions.share", self.share)
@@ -236,10 +259,12 @@ class Life:
         M_d: long-lasting capacity M_d at 0° [N·m].
         damage_per_condition: share of the damage done in each condition [–] (sums to 1).
         damage_per_case: share of the damage done by each spectrum case [–] (sums to 1).
-        result: code (int32, [`RESULTS`][tripodjax.results.RESULTS]): the κ
-            solve's, or ``nonfinite`` where an input or the life is NaN. A spectrum
-            that does no damage gives an infinite life, damage shares 0 and
-            ``successful``.
+        result: code (int32, [`RESULTS`][tripodjax.results.RESULTS]), per joint: the κ
+            solve's, ``nonfinite`` where an input or the life is NaN, ``outside_validity``
+            where a (traced) input lies outside its domain (a negative size or torque,
+            an angle ≥ π/2, shares that are negative or do not sum to 1; the lives are
+            then NaN). A spectrum that does no damage gives an infinite life, damage
+            shares 0 and ``successful``.
     """
 
     hours: jax.Array
@@ -275,14 +300,24 @@ def joint_life(
     Miner's rule on their shares, 1/L_h = Σ w_j / L_h,j, and L_s = L_h · V_m with
     V_m = Σ a_i V_i.
 
-    Args: d, R > 0 [mm] (scalars; ``vmap`` for batches); ``spectrum`` a
+    Args: d, R > 0 [mm]; ``spectrum`` a
     [`LoadSpectrum`][tripodjax.life.LoadSpectrum]; ``conditions`` a
     [`WorkingConditions`][tripodjax.life.WorkingConditions]; conformity Ψ ≥ 1.0005;
     P_d > 0 [MPa]; C_s > 0; n_rollers an integer ≥ 1; angles as
     [`capacities`][tripodjax.hertz.capacities], as is ``longitudinal_conformity``
     (0 for straight tracks; a ball joint's curved tracks); ``angle_law`` ``"workbook"`` or
-    ``"seed"``. Inside ``jit`` a non-finite input gives a NaN life and
-    ``result = nonfinite``. Differentiable w.r.t. d, R, the conformity, P_d and
+    ``"seed"``.
+
+    Shapes: d, R, conformity, P_d, C_s, n_rollers, the angles and
+    ``longitudinal_conformity`` are numbers or non-empty arrays (lists too) that
+    broadcast together, one joint per element: ``hours``, ``km``, ``M_d`` and
+    ``result`` take their broadcast shape, the per-condition and per-case fields
+    one axis more. One spectrum and one set of conditions (1-D fields) serve
+    every joint; ``vmap`` over several spectra.
+
+    Inside ``jit`` a non-finite input gives a NaN life and ``result =
+    nonfinite``, a finite one outside its domain a NaN life and
+    ``outside_validity``. Differentiable w.r.t. d, R, the conformity, P_d and
     every spectrum and condition number.
     """
     arguments = dict(locals())  # the parameters, as given
@@ -297,12 +332,8 @@ def joint_life(
             "allowed: a life.WorkingConditions"
         )
     check_choice("angle_law", angle_law, ANGLE_LAWS)
-    check_positive(d=d, R=R, P_d=P_d, C_s=C_s)
-    check_conformity(conformity)
-    _check_n_rollers(n_rollers)
-    _check_angles(pressure_angle, helix_angle)
-    _check_longitudinal(longitudinal_conformity)
-    return _joint_life(**arguments)
+    joint = {k: v for k, v in arguments.items() if k in HERTZ_DOMAINS}
+    return _joint_life(**{**arguments, **dict(zip(joint, _checked(**joint), strict=True))})
 
 
 @functools.partial(latency_bound_at_top_level, small_inputs=True, static_argnames="angle_law")
@@ -322,6 +353,7 @@ def _joint_life(
 ):
     """`joint_life` past its checks: one compiled program (its operations one by one compiled
     each on a first call)."""
+    joint = {k: v for k, v in locals().items() if k in HERTZ_DOMAINS}
     C_p, _, kappa_code = _conformity_coefficient(conformity, longitudinal_conformity)
     M_d = _torque_at_pressure(P_d, d, R, C_p, C_s, n_rollers, pressure_angle, helix_angle, 0.0)
     rate0, terms = _damage_rate(M_d, spectrum.torque, spectrum.speed, spectrum.share)
@@ -335,23 +367,36 @@ def _joint_life(
     damaged = rate > 0
     scale = jnp.where(damaged, rate, 1.0)
     case_total = jnp.sum(terms, axis=-1, keepdims=True)
-    ok = _all_finite(
-        M_d, angle, g, w, spectrum.torque, spectrum.speed, spectrum.share, spectrum.vehicle_speed
+    # Per joint: finite, and every input inside its domain (checked where concrete).
+    finite = _finite(M_d) & _all_finite(
+        angle, g, w, spectrum.torque, spectrum.speed, spectrum.share, spectrum.vehicle_speed
     )
+    outside = (
+        _outside_hertz(**joint)
+        | _spectrum_outside(spectrum.torque, spectrum.speed, spectrum.share, spectrum.vehicle_speed)
+        | jnp.any(outside_domains(DOMAINS, angle=angle))
+        | outside_shares(w)
+    )
+    ok = finite & ~outside
+    each = ok[..., None]  # per condition, per case
     hours = _hours(rate)
     km = jnp.where(damaged, hours * mean_speed, jnp.inf)
-    code = worst(jnp.max(kappa_code), code_where(ok, RESULTS.successful, RESULTS.nonfinite))
     return Life(
         hours=_nan_unless(ok, hours),
         km=_nan_unless(ok, km),
-        hours_per_condition=_nan_unless(ok, per_condition),
-        km_per_condition=_nan_unless(ok, jnp.where(damaged, per_condition * mean_speed, jnp.inf)),
-        M_d=M_d,
-        damage_per_condition=_nan_unless(ok, jnp.where(damaged, condition_rate / scale, 0.0)),
-        damage_per_case=_nan_unless(
-            ok, jnp.where(case_total > 0, terms / jnp.where(case_total > 0, case_total, 1.0), 0.0)
+        hours_per_condition=_nan_unless(each, per_condition),
+        km_per_condition=_nan_unless(
+            each, jnp.where(damaged[..., None], per_condition * mean_speed, jnp.inf)
         ),
-        result=code,
+        M_d=M_d,
+        damage_per_condition=_nan_unless(
+            each, jnp.where(damaged[..., None], condition_rate / scale[..., None], 0.0)
+        ),
+        damage_per_case=_nan_unless(
+            each,
+            jnp.where(case_total > 0, terms / jnp.where(case_total > 0, case_total, 1.0), 0.0),
+        ),
+        result=_code(finite, outside, kappa_code),
     )
 
 

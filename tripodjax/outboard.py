@@ -62,15 +62,16 @@ from jax.typing import ArrayLike
 
 from tripodjax import hertz, life
 from tripodjax._checks import (
+    Domain,
+    check,
     check_choice,
-    check_conformity,
+    check_domains,
     check_instance,
     check_integer,
-    check_non_negative,
-    check_positive,
-    check_range,
     check_real,
+    check_shapes,
     checked_pytree_dataclass,
+    outside_domains,
 )
 from tripodjax.hertz import _nan_unless
 from tripodjax.results import RESULTS, code_where, worst
@@ -104,6 +105,10 @@ class FixedJoint:
             in both races: no ball joint).
         oblique_angle: the tracks' oblique angle ζ (YZ) [rad] in [0, π/2) (0).
         tolerance: the tolerance on the life's calculation spread [–], ≥ 0 (0.15).
+
+    Every field a finite number, or a non-empty array, the arrays broadcasting together
+    (checked when built from concrete values; traced fields outside their domain give NaN
+    and ``outside_validity`` in the functions that use them).
     """
 
     d: ArrayLike
@@ -119,35 +124,46 @@ class FixedJoint:
     tolerance: ArrayLike = 0.15
 
     def __post_init__(self) -> None:
-        check_positive(**{f"FixedJoint.{k}": getattr(self, k) for k in _POSITIVE})
-        check_conformity(self.conformity, "FixedJoint.conformity")
-        hertz._check_longitudinal(
-            self.longitudinal_conformity, "FixedJoint.longitudinal_conformity"
-        )
-        check_range(
-            "FixedJoint.pressure_angle",
-            self.pressure_angle,
-            0.0,
-            math.pi / 2,
-            low_open=True,
-            high_open=True,
-            unit=" rad",
-        )
-        check_range(
-            "FixedJoint.oblique_angle",
-            self.oblique_angle,
-            0.0,
-            math.pi / 2,
-            high_open=True,
-            unit=" rad",
-        )
-        check_non_negative("FixedJoint.tolerance", self.tolerance)
+        fields = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        check_domains(DOMAINS, **{f"FixedJoint.{k}": v for k, v in fields.items()})
+        check_shapes({k: np.shape(v) for k, v in fields.items()}, prefix="FixedJoint.")
 
 
 READINGS = ("consistent", "workbook")
 MIN_BALLS = 3
 """The fewest balls of a fixed joint: three hold the inner race on the joint's centre."""
-_POSITIVE = ("d", "R", "P_s", "P_d", "P_sd", "C_s")
+DOMAINS = {
+    **{k: hertz.DOMAINS[k] for k in ("d", "R", "P_s", "P_d", "P_sd", "C_s", "conformity")},
+    "longitudinal_conformity": hertz.DOMAINS["longitudinal_conformity"],
+    # (0, π/2) open: at π/2 the groove would be as deep as the ball's radius (no ball joint)
+    "pressure_angle": Domain(0.0, math.pi / 2, low_open=True, high_open=True, unit=" rad"),
+    "oblique_angle": hertz.DOMAINS["helix_angle"],
+    "tolerance": Domain(0.0),
+    "M_max": hertz.DOMAINS["M_max"],
+}
+"""A fixed joint's fields' domains (and M_max's): one rule for the check of a concrete value
+and the flag of a traced one."""
+
+
+def _balls_fit(d, R, n_balls):
+    """The one fit rule: d < 2 R sin(π/n) [mm] (adjacent ball centres more than a ball apart)."""
+    return d < 2.0 * R * math.sin(math.pi / n_balls)
+
+
+def _outside(joint, n_balls, *, tolerance=False):
+    """Traced: where the joint's finite fields lie outside what its functions' hertz checks do
+    not cover: overlapping balls, a pressure angle of π/2 (and with ``tolerance`` its own)."""
+    d, R = jnp.asarray(joint.d), jnp.asarray(joint.R)
+    overlap = jnp.isfinite(d) & jnp.isfinite(R) & ~_balls_fit(d, R, n_balls)
+    fields = {"pressure_angle": joint.pressure_angle}
+    if tolerance:
+        fields["tolerance"] = joint.tolerance
+    return overlap | outside_domains(DOMAINS, **fields)
+
+
+def _flagged(outside, code):
+    """``code``, ``outside_validity`` where ``outside``."""
+    return worst(code, code_where(outside, RESULTS.outside_validity, RESULTS.successful))
 
 
 def _check_n_balls(n_balls, name="n_balls"):
@@ -166,7 +182,7 @@ def check_balls_fit(d, R, n_balls, names=("FixedJoint.d", "FixedJoint.R", "n_bal
     d, R = np.broadcast_arrays(*arrays)
     with np.errstate(over="ignore"):  # a spacing beyond the dtype's range is inf: any d fits
         spacing = 2.0 * R * math.sin(math.pi / n_balls)
-    overlap = ~(d < spacing)
+        overlap = ~_balls_fit(d, R, n_balls)
     if np.any(overlap):
         i = tuple(int(j) for j in np.argwhere(overlap)[0])
         # each array's own index of the first overlap (a broadcast axis at 0)
@@ -235,25 +251,30 @@ def capacities(
         **_common(joint, n_balls),
     )
     # The balls' fit where d and R are traced (checked above where concrete): NaN and
-    # ``nonfinite`` where neighbours would overlap, never a plausible capacity.
-    fits = jnp.asarray(joint.d) < 2.0 * jnp.asarray(joint.R) * math.sin(math.pi / n_balls)
+    # ``outside_validity`` where neighbours would overlap, never a plausible capacity.
+    inside = ~_outside(joint, n_balls)
     return dataclasses.replace(
         exact,
-        M_s=_nan_unless(fits, exact.M_s * factor),
-        M_d=_nan_unless(fits, exact.M_d * factor),
-        M_sd=_nan_unless(fits, exact.M_sd * factor),
+        M_s=_nan_unless(inside, exact.M_s * factor),
+        M_d=_nan_unless(inside, exact.M_d * factor),
+        M_sd=_nan_unless(inside, exact.M_sd * factor),
         C_p=exact.C_p / factor ** (1.0 / 3.0),
         mu_nu=exact.mu_nu * factor ** (1.0 / 3.0),
-        result=worst(exact.result, code_where(fits, RESULTS.successful, RESULTS.nonfinite)),
+        result=_flagged(~inside, exact.result),
     )
 
 
 def static_safety(
     joint: FixedJoint, M_max: ArrayLike, *, n_balls: int = 6, reading: str = "consistent"
 ) -> jax.Array:
-    """S_o = M_s / M_max [–] for the largest working torque M_max [N·m] (> 0), forward or backward."""
-    check_positive(M_max=M_max)
-    return capacities(joint, n_balls=n_balls, reading=reading).M_s / jnp.asarray(M_max)
+    """S_o = M_s / M_max [–] for the largest working torque M_max [N·m] (> 0), forward or backward.
+
+    Inside ``jit`` a traced M_max ≤ 0 (or a joint outside its domain) gives NaN.
+    """
+    check_domains(DOMAINS, M_max=M_max)
+    M_max = jnp.asarray(M_max)
+    safety = capacities(joint, n_balls=n_balls, reading=reading).M_s / M_max
+    return _nan_unless(~outside_domains(DOMAINS, M_max=M_max), safety)
 
 
 def min_ball_diameter(
@@ -270,14 +291,25 @@ def min_ball_diameter(
     [`hertz.min_roller_diameter`][tripodjax.hertz.min_roller_diameter] with
     ``rule="consistent"`` and the joint's P_s and contact geometry; ``C_s`` the
     sizing safety coefficient (the workbook's 1.35), ``R_over_d`` the PCR/d
-    (1.65); ``reading`` as [`capacities`][tripodjax.outboard.capacities].
+    (1.65) with room for the balls: R_over_d > 1/(2 sin(π/n_balls)) (1.0 for 6 balls, else
+    neighbours would overlap); ``reading`` as [`capacities`][tripodjax.outboard.capacities].
     With the workbook reading it gives the sheet's 12.424 and 20.499 mm within 0.2 %.
+    Inside ``jit`` a traced input outside its domain gives NaN.
     """
     check_instance("joint", joint, FixedJoint, "an outboard.FixedJoint")
     common = {**_common(joint, n_balls), "C_s": C_s}
+    lowest = 1.0 / (2.0 * math.sin(math.pi / n_balls))
+    check(
+        "R_over_d",
+        R_over_d,
+        lambda a: np.isfinite(a) & _balls_fit(1.0, a, n_balls),
+        f"R_over_d > 1/(2·sin(π/n_balls)) = {lowest:.6g} for {n_balls} balls (finite; "
+        "neighbouring balls would overlap)",
+    )
     scale = _table_factor(joint, reading) ** (-1.0 / 3.0)  # d_min ∝ C_p ∝ 1/μν
     d_min, R_min = hertz.min_roller_diameter(M_max, R_over_d=R_over_d, P_s=joint.P_s, **common)
-    return d_min * scale, R_min * scale
+    fits = _balls_fit(1.0, jnp.asarray(R_over_d), n_balls)
+    return _nan_unless(fits, d_min * scale), _nan_unless(fits, R_min * scale)
 
 
 def joint_life(
@@ -318,6 +350,7 @@ def joint_life(
                 "field, shape ()): jax.vmap(joint_life) over several"
             )
     table = _table_factor(joint, reading)
+    outside = _outside(joint, n_balls, tolerance=True)
     out = life.joint_life(
         joint.d,
         joint.R,
@@ -336,13 +369,14 @@ def joint_life(
         v_ave = revolution_mean_speed(spectrum)
         km = _in_km(hours, out.km, v_ave)
         km_per_condition = _in_km(hours_per_condition, out.km_per_condition, v_ave)
-    return dataclasses.replace(
-        out,
+    lives = dict(
         hours=hours,
         km=km,
         hours_per_condition=hours_per_condition,
         km_per_condition=km_per_condition,
-    )
+    )  # NaN where a traced field lies outside (a negative tolerance, overlapping balls)
+    lives = {name: _nan_unless(~outside, value) for name, value in lives.items()}
+    return dataclasses.replace(out, **lives, result=_flagged(outside, out.result))
 
 
 def revolution_mean_speed(spectrum: life.LoadSpectrum) -> jax.Array:

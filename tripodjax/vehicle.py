@@ -44,6 +44,7 @@ Units at the API: kg, m, N, N·m, rpm, km/h, km. Every number is a pytree leaf
 is the arrays' shape.
 """
 
+import dataclasses
 import functools
 import math
 
@@ -53,14 +54,17 @@ import numpy as np
 from jax.typing import ArrayLike
 
 from tripodjax._checks import (
+    Domain,
     check,
+    check_broadcast,
     check_choice,
-    check_non_negative,
-    check_positive,
+    check_domains,
     check_range,
     check_real,
     check_shares,
     checked_pytree_dataclass,
+    outside_domains,
+    outside_shares,
 )
 from tripodjax._compile import latency_bound_at_top_level
 from tripodjax._pytree import pytree_dataclass
@@ -84,6 +88,35 @@ GRAVITY = 9.81  # m/s², as the workbook (3087 N = 629.66 kg · 9.81 / 2)
 
 def _shape(value):
     return None if isinstance(value, jax.core.Tracer) else np.shape(value)
+
+
+_POSITIVE = Domain(0.0, low_open=True)
+_SHARE = Domain(0.0, 1.0)
+DOMAINS = {
+    **dict.fromkeys(
+        (
+            "mass",
+            "wheelbase",
+            "tyre_radius",
+            "adhesion",
+            "shock_factor",
+            "engine_speed",
+            "ratios",
+            "reverse_ratio",
+            "required_km",
+        ),
+        _POSITIVE,
+    ),
+    **dict.fromkeys(("front_share", "rear_torque_share", "differential_locking"), _SHARE),
+    "cg_height": Domain(0.0, unit=" m"),
+    "engine_torque": Domain(0.0, unit=" N·m"),
+    "load_transfer_per_ratio": Domain(0.0, unit=" N"),
+    "reverse_load_transfer": Domain(0.0, unit=" N"),
+    "use": _SHARE,
+}
+"""Each input's domain: one rule for the check of a concrete value and the flag of a traced one
+(NaN load cycles)."""
+_ARRAYS = {"engine_torque": (4,), "engine_speed": (4,), "ratios": None}  # the rest: one number
 
 
 @checked_pytree_dataclass
@@ -111,6 +144,10 @@ class Vehicle:
         reverse_load_transfer: wheel-load transfer in reverse [N], ≥ 0.
         differential_locking: λ [–] in [0, 1]: one shaft takes at most (1 + λ)/2 of
             its axle's torque (1, the workbook's 100 %, by default).
+
+    One vehicle: every field but ``engine_torque``, ``engine_speed`` and ``ratios``
+    one number (shape ()); ``jax.vmap`` over several. All finite; checked when built
+    from concrete values (traced ones outside their domain give NaN load cycles).
     """
 
     mass: ArrayLike
@@ -130,31 +167,15 @@ class Vehicle:
     differential_locking: ArrayLike = 1.0
 
     def __post_init__(self) -> None:
-        check_positive(
-            **{
-                f"Vehicle.{k}": getattr(self, k)
-                for k in (
-                    "mass",
-                    "wheelbase",
-                    "tyre_radius",
-                    "adhesion",
-                    "shock_factor",
-                    "engine_speed",
-                    "ratios",
-                    "reverse_ratio",
+        fields = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        check_domains(DOMAINS, **{f"Vehicle.{k}": v for k, v in fields.items()})
+        for k, value in fields.items():
+            shape = _shape(value)
+            if k not in _ARRAYS and shape not in (None, ()):
+                raise ValueError(
+                    f"Vehicle.{k} has shape {shape}; allowed: one number (shape ()) for one "
+                    "vehicle; jax.vmap over several"
                 )
-            }
-        )
-        check_range("Vehicle.front_share", self.front_share, 0.0, 1.0)
-        check_range("Vehicle.rear_torque_share", self.rear_torque_share, 0.0, 1.0)
-        check_range("Vehicle.differential_locking", self.differential_locking, 0.0, 1.0)
-        for k, unit in (
-            ("cg_height", " m"),
-            ("engine_torque", " N·m"),
-            ("load_transfer_per_ratio", " N"),
-            ("reverse_load_transfer", " N"),
-        ):
-            check_non_negative(f"Vehicle.{k}", getattr(self, k), unit)
         for k in ("engine_torque", "engine_speed"):
             shape = _shape(getattr(self, k))
             if shape is not None and shape != (len(ENGINE_CONDITIONS),):
@@ -253,21 +274,39 @@ def load_cycles(
     """The load cycles of the halfshaft of ``axle`` ("rear" or "front") over ``required_km`` [km].
 
     See the module docstring for the chain. Differentiable in every number of
-    ``vehicle``, ``modes`` and ``required_km``; ``vmap`` over any of them.
+    ``vehicle``, ``modes`` and ``required_km``; ``vmap`` over any of them. ``required_km``
+    a number > 0 (or an array that broadcasts against the cycles' shape (M, G + 1, 4)).
+    Inside ``jit`` a traced input outside its domain (a mass ≤ 0, shares that do not sum to
+    1…) gives NaN in every field (``LoadCycles`` has no result code).
     """
     if not isinstance(vehicle, Vehicle):
         raise TypeError(f"vehicle = {vehicle!r} is not allowed; allowed: a vehicle.Vehicle")
     if not isinstance(modes, DrivingModes):
         raise TypeError(f"modes = {modes!r} is not allowed; allowed: a vehicle.DrivingModes")
     check_choice("axle", axle, AXLES)
-    check_positive(required_km=required_km)
+    check_domains(DOMAINS, required_km=required_km)
+    check_broadcast(required_km=required_km)  # not empty
     g_ratios, u = _shape(vehicle.ratios), _shape(modes.use)
     if g_ratios is not None and u is not None and u[1] != g_ratios[0] + 1:
         raise ValueError(
             f"DrivingModes.use has {u[1]} gears; the vehicle has {g_ratios[0]} forward gears "
             "and reverse: use needs shape (modes, gears + 1, 4)"
         )
+    km = _shape(required_km)
+    if km is not None and u is not None and not _broadcasts(km, u):
+        raise ValueError(
+            f"required_km has shape {km}; allowed: one number [km] (shape ()), or an array "
+            f"that broadcasts against the cycles' shape (modes, gears + 1, 4) = {u}"
+        )
     return _load_cycles(vehicle, modes, required_km, axle)
+
+
+def _broadcasts(shape, onto):
+    """``shape`` broadcasts onto ``onto`` without growing it."""
+    try:
+        return np.broadcast_shapes(shape, onto) == tuple(onto)
+    except ValueError:
+        return False
 
 
 @functools.partial(latency_bound_at_top_level, small_inputs=True, static_argnums=3)
@@ -299,7 +338,12 @@ def _load_cycles(vehicle, modes, required_km, axle):
     def per_mode(x):
         return jnp.broadcast_to(x, (n_modes, *x.shape))
 
-    return LoadCycles(
+    # Every number inside its domain (checked where concrete; here where traced: NaN outside).
+    fields = {f.name: getattr(v, f.name) for f in dataclasses.fields(v)}
+    outside = outside_shares(modes.weight)
+    for name, value in {**fields, "required_km": required_km, "use": modes.use}.items():
+        outside |= jnp.any(outside_domains(DOMAINS, **{name: value}))
+    cycles = LoadCycles(
         shaft_speed=per_mode(shaft_speed),
         vehicle_speed=per_mode(vehicle_speed),
         engine_torque=per_mode(engine),
@@ -313,6 +357,7 @@ def _load_cycles(vehicle, modes, required_km, axle):
         M_max_backward=jnp.max(working[-1]),
         shock_factor=k_s,
     )
+    return jax.tree_util.tree_map(lambda x: jnp.where(outside, jnp.nan, x), cycles)
 
 
 def load_spectrum(cycles: LoadCycles) -> LoadSpectrum:
