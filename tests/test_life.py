@@ -335,6 +335,14 @@ def test_spectrum_csv_from_revolutions_and_hours(tmp_path):
             "torque_Nm,speed_rpm,vehicle_speed_kmh,hours\n5,5,5,nan\n",
             "line 2: hours = nan is not allowed",
         ),
+        (  # which column would count? (the first did, silently)
+            "torque_Nm,speed_rpm,vehicle_speed_kmh,hours,hours\n5,5,5,1,2\n",
+            "s.csv line 1: the column hours is given twice",
+        ),
+        (
+            "torque_Nm,speed_rpm,torque_Nm,vehicle_speed_kmh,hours\n5,5,6,5,1\n",
+            "s.csv line 1: the column torque_Nm is given twice",
+        ),
     ],
 )
 def test_spectrum_csv_names_the_bad_line(tmp_path, text, message):
