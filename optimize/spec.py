@@ -26,6 +26,12 @@ import numpy as np
 from tripodjax._checks import MAX_GAMMA0, check_layout_domain, real_scalar
 from tripodjax.hertz import MIN_CONFORMITY
 from tripodjax.life import ANGLE_LAWS, read_spectrum_rows
+from tripodjax.optimize._texts import (
+    MAX_PATH_LENGTH,
+    MAX_TEXT_LENGTH,
+    label_problem,
+    length_problem,
+)
 from tripodjax.vehicle import AXLES, ENGINE_CONDITIONS
 
 MAX_GAMMA0_DEG = math.degrees(MAX_GAMMA0)
@@ -406,9 +412,7 @@ MAX_OUTER_ITERATIONS = INTEGER_LIMITS["max_outer"][1]
 MAX_WORK = 1.5e6
 MAX_LIST_LENGTH = 1000
 # Text in a spec: a key or a text value (a name, a choice) is a label of the report's tables and
-# figures, at most MAX_TEXT_LENGTH characters; a file path (PATH_KEYS) at most Linux's PATH_MAX.
-MAX_TEXT_LENGTH = 80
-MAX_PATH_LENGTH = 4096
+# figures, at most MAX_TEXT_LENGTH characters; a file path (PATH_KEYS) at most MAX_PATH_LENGTH.
 PATH_KEYS = ("life.spectrum_file",)
 # Legacy keys that keep working (old name → new name).
 LEGACY_OBJECTIVE = {
@@ -622,8 +626,9 @@ def _bounded_text(table, path=()):
             _bounded_text(value, path[:-1] + (f"{path[-1]}[{i}]",))
     elif isinstance(table, str):
         limit = MAX_PATH_LENGTH if where in PATH_KEYS else MAX_TEXT_LENGTH
-        if len(table) > limit:
-            raise SpecError(f"{where} is {len(table)} characters long; at most {limit} allowed")
+        problem = length_problem(where, table, limit)
+        if problem:
+            raise SpecError(problem)
     return table
 
 
@@ -1327,11 +1332,9 @@ def _names(names, where, kind="a non-empty list of strings"):
     if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
         raise SpecError(f"{where} = {names!r} must be {kind}")
     for i, name in enumerate(names):
-        if not name.strip() or not name.isprintable():
-            raise SpecError(
-                f"{where}[{i}] = {name!r} is not allowed: a name of printable characters, not "
-                "empty or blank (no control characters such as a newline)"
-            )
+        problem = label_problem(f"{where}[{i}]", name)  # the rule of --revision too
+        if problem:
+            raise SpecError(problem)
     if len(set(names)) != len(names):
         raise SpecError(f"{where} = {names!r} must not repeat a name")
     return names

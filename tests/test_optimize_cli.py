@@ -195,7 +195,8 @@ def test_cli_bad_files_and_out_exit_2_before_computing(tmp_path):
         (("--out", ""), "--out"),
         (("--out",), "--out"),
         (("--revision", " ", "--out", str(tmp_path / "o")), "--revision"),
-        (("--revision", "1\n2", "--out", str(tmp_path / "o")), "not printable"),
+        (("--revision", "1\n2", "--out", str(tmp_path / "o")), "printable characters"),
+        (("--revision", "r" * 5000, "--out", str(tmp_path / "o")), "at most 80 allowed"),
     ):
         result = run_cli(*args)
         assert result.returncode == 2, (args, result.stderr)
