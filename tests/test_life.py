@@ -391,6 +391,16 @@ def test_spec_spectrum_file_is_read_relative_to_the_spec_folder(tmp_path, monkey
         optimize.SpecError, match=r"bad.csv line 3: speed_rpm = 'x' is not a number"
     ):
         optimize.load_spec(folder / "bad.toml")
+    # A file's levels within the [life] lists' ranges (1e300 N·m gave a plausible life before).
+    (folder / "data" / "bad.csv").write_text(
+        "torque_Nm,speed_rpm,vehicle_speed_kmh,hours\n1000,300,40,1\n1e300,800,100,3\n"
+    )
+    with pytest.raises(
+        optimize.SpecError,
+        match=r"bad.csv level 2: torque_Nm = 1e\+300 is not allowed: a finite number ≥ 0 N·m "
+        r"and ≤ 50000 N·m$",
+    ):
+        optimize.load_spec(folder / "bad.toml")
 
 
 def test_evaluate_gives_the_damage_by_condition_gear_and_mode():
