@@ -850,11 +850,12 @@ def _numbers(table, section, key, rule=None, *, where=None):
 
 
 def _string(table, section, key, allowed):
+    """One of the texts ``allowed``; the message spells the value and the choices as TOML."""
     where = f"{section}.{key}"
     value = table[section][key]
     if not isinstance(value, str) or value not in allowed:
         raise SpecError(
-            f"{where} = {value!r} is not allowed; allowed: {', '.join(repr(a) for a in allowed)}"
+            f"{where} = {_toml(value)} is not allowed; allowed: {', '.join(map(_toml, allowed))}"
         )
     return value
 
@@ -976,6 +977,12 @@ def _objective(table):
     for q in terms:
         if q not in refs:
             raise SpecError(f"objective.w_{q} needs objective.{q}_ref (> 0, in {QUANTITIES[q][0]})")
+    for q in refs:  # the spec's one rule for its keys: none is given and left unused
+        if q not in weights:
+            raise SpecError(
+                f"objective.{q}_ref = {refs[q]:g} has no weight objective.w_{q}: a reference "
+                f"enters the objective with its weight only; give w_{q} or leave {q}_ref out"
+            )
     for q in terms:
         if not math.isfinite(weights[q] / refs[q]):
             raise SpecError(
@@ -1053,27 +1060,29 @@ def _constraints(table):
 
 
 def _check_force_model(structure, values):
-    """SpecError where the objective or a constraint takes a GAF or force quantity and
-    solver.n_theta is below the minimum of the orders (they would alias), or a quantity of the
-    force model (tripodjax.forces) and loads.gaf_torque is 0 (its roller loads over T/3R are
-    0/0, its forces 0)."""
+    """SpecError where the objective or a constraint takes a GAF or force quantity (each judged
+    at loads.gaf_torque) and solver.n_theta is below the minimum of the orders (they would
+    alias), or loads.gaf_torque is 0: the force model's (tripodjax.forces) roller loads over
+    T/3R are then 0/0 and its forces 0, Lee's GAF (friction.gaf_model "stroke" or "printed")
+    0 whatever the design."""
     from tripodjax.kinematics import MIN_N_THETA_ORDERS
 
-    with_orders = [q for q in (*GAF_QUANTITIES, *FORCE_QUANTITIES) if q in structure.needs]
-    if with_orders and structure.n_theta < MIN_N_THETA_ORDERS:
+    used = [q for q in (*FORCE_QUANTITIES, *GAF_QUANTITIES) if q in structure.needs]
+    if used and structure.n_theta < MIN_N_THETA_ORDERS:
+        first = next(q for q in (*GAF_QUANTITIES, *FORCE_QUANTITIES) if q in used)
         raise SpecError(
-            f"solver.n_theta = {structure.n_theta} is not allowed with {with_orders[0]} in the "
+            f"solver.n_theta = {structure.n_theta} is not allowed with {first} in the "
             f"objective or the constraints: at least {MIN_N_THETA_ORDERS} (the orders 3, 6 and 9 "
             "would alias)"
         )
-    used = [q for q in FORCE_QUANTITIES if q in structure.needs]
-    if structure.gaf_model == "forces":
-        used += [q for q in GAF_QUANTITIES if q in structure.needs]
     if used and not values["loads"]["gaf_torque"] > 0:
+        forces = used[0] in FORCE_QUANTITIES or structure.gaf_model == "forces"
+        model = "the force model's " if forces else ""
+        zero = "its forces 0, the roller loads over T/3R 0/0" if forces else "the GAF is 0"
         raise SpecError(
-            f"loads.gaf_torque = {values['loads']['gaf_torque']:g} is not allowed with the force "
-            f"model's {used[0]} in the objective or the constraints: > 0 N·m (the torque at "
-            "which the forces are judged)"
+            f"loads.gaf_torque = {values['loads']['gaf_torque']:g} is not allowed with "
+            f"{model}{used[0]} in the objective or the constraints: > 0 N·m (the torque at "
+            f"which it is judged; at 0 {zero} whatever the design)"
         )
 
 
@@ -1280,7 +1289,7 @@ def _vehicle(table):
     share = numbers["rear_torque_share"] if axle == "rear" else 1.0 - numbers["rear_torque_share"]
     if share == 0:
         raise SpecError(
-            f"vehicle.axle = {axle!r} with vehicle.rear_torque_share = "
+            f"vehicle.axle = {_toml(axle)} with vehicle.rear_torque_share = "
             f"{numbers['rear_torque_share']:g}: that axle's shafts carry no torque"
         )
     if not np.any(total * np.asarray(weight)[:, None] > 0) or not any(

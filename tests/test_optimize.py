@@ -247,7 +247,7 @@ LISTS = (
         ("[forces]\nmu_trunnion = -0.1", "forces.mu_trunnion = -0.1 is not allowed"),
         ("[forces]\nlts_speed_rpm = nan", "forces.lts_speed_rpm = nan is not allowed"),
         ("[forces]\nmu = 0.1", "unknown key forces.mu; allowed here: contact_angle_deg"),
-        ('[friction]\ngaf_model = "lee"', "allowed: 'stroke', 'printed', 'forces'"),
+        ('[friction]\ngaf_model = "lee"', 'allowed: "stroke", "printed", "forces"'),
         ("[bounds]\nR = [30.0, 20.0]", "bounds.R = [30.0, 20.0] is not allowed"),
         ("[bounds]\nR = [15.0, 150.0]", "R/l ≤ 0.2"),
         ("[bounds]\nd_roller = [20.0, inf]", "bounds.d_roller[1] = inf is not allowed"),
@@ -268,14 +268,14 @@ LISTS = (
             "life.spectrum_file and life.torque both",
         ),
         ('[life]\nspectrum_file = "no/such.csv"', "life.spectrum_file: cannot read spectrum file"),
-        ('[life]\nangle_law = "cosine"', "life.angle_law = 'cosine' is not allowed"),
+        ('[life]\nangle_law = "cosine"', 'life.angle_law = "cosine" is not allowed'),
         (
             "[constraints]\nmax_life_km = 5e4",
             "max_life_km = 50000 is below life.required_km = 100000",
         ),
         (
             '[vehicle]\naxle = "middle"',
-            "vehicle.axle = 'middle' is not allowed",
+            'vehicle.axle = "middle" is not allowed; allowed: "rear", "front"',
         ),
         ("[vehicle]\nengine_torque_Nm = [1.0, 2.0]", "vehicle.engine_torque_Nm has 2 entries"),
         (
@@ -290,7 +290,7 @@ LISTS = (
         ),
         ("[vehicle.modes]\nuse_T_max_pct = " + str([90.0] * 7), "sum to"),
         ("[vehicle]\nfront_share = 1.5", "vehicle.front_share = 1.5 is not allowed"),
-        ('[vehicle]\naxle = "front"', "vehicle.axle = 'front' with vehicle.rear_torque_share = 1"),
+        ('[vehicle]\naxle = "front"', 'vehicle.axle = "front" with vehicle.rear_torque_share = 1'),
         (
             "[vehicle.modes]\nweight = [0.0, 0.0, 1.0]\nuse_T_max_pct = [[1, 1, 1, 1, 1, 1, 1], "
             "[1, 1, 1, 1, 1, 1, 1], [0, 0, 0, 0, 0, 0, 0]]\nuse_P_max_pct = [0, 0, 0, 0, 0, 0, 0]",
@@ -310,7 +310,7 @@ LISTS = (
             "solver.n_theta × solver.starts × solver.max_outer × solver.inner_steps",
         ),
         ("[solver]\nn_theta = 360\nstarts = 16", "= 360 × 16 × 25 × 30 = 4.32e+06 is not allowed"),
-        ('[friction]\ngrease = "C"', "friction.grease = 'C' is not allowed"),
+        ('[friction]\ngrease = "C"', 'friction.grease = "C" is not allowed'),
         ("[objective]\nw_sizes = 1.0", "unknown key objective.w_sizes; allowed"),
         ("[constraints]\nmax_colour = 1.0", "gaf_rms"),
         ("[bounds]\ngamma0_deg = [10.0, 50.0]", "bounds.gamma0_deg[1] = 50.0"),
@@ -352,6 +352,16 @@ LISTS = (
         ("[hertz]\nC_s = 1e-300", "hertz.C_s = 1e-300 is not allowed: a finite number ≥ 1"),
         ("[outboard]\nC_s = 1e-300", "outboard.C_s = 1e-300 is not allowed"),
         ("[loads]\nM_max = 1e-300", "loads.M_max = 1e-300 is not allowed"),
+        (  # the default stroke model's GAF at 0 N·m is 0, whatever the design
+            "[loads]\ngaf_torque = 0.0",
+            "loads.gaf_torque = 0 is not allowed with gaf_rms in the objective or the "
+            "constraints: > 0 N·m",
+        ),
+        (
+            "[objective]\neccentricity_ref = 1.0",
+            "objective.eccentricity_ref = 1 has no weight objective.w_eccentricity",
+        ),
+        ("[vehicle]\naxle = true", 'vehicle.axle = true is not allowed; allowed: "rear", "front"'),
         (  # the spec's keys, not the library's fields
             "[shaft]\ncore_uts_MPa = 3000.0",
             "shaft.surface_uts_MPa = 2180.0 is outside the allowed range: shaft.surface_uts_MPa "
