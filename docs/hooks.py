@@ -312,12 +312,18 @@ def spec_entries(text: str):
     return sections
 
 
-def _leaves(table, prefix=()):
+def _leaves_with_values(table, prefix=()):
     for key, value in table.items():
         if isinstance(value, dict):
-            yield from _leaves(value, (*prefix, key))
+            yield from _leaves_with_values(value, (*prefix, key))
         else:
-            yield ".".join((*prefix, key))
+            yield ".".join((*prefix, key)), value
+
+
+def _is_number(value):
+    if isinstance(value, list):
+        return bool(value) and all(_is_number(v) for v in value)
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def spec_reference_markdown(text: str) -> str:
@@ -326,13 +332,19 @@ def spec_reference_markdown(text: str) -> str:
     except ModuleNotFoundError:  # Python 3.10
         import tomli as tomllib
 
+    from tripodjax.optimize.spec import allowed_text
+
     sections = spec_entries(text)
     listed = {f"{s}.{r[0]}" for s, _, rows in sections for r in rows if not r[4]}
-    parsed = set(_leaves(tomllib.loads(text)))
+    parsed = {k for k, _ in _leaves_with_values(tomllib.loads(text))}
     if listed != parsed:
         raise ValueError(
             f"spec reference out of step with DEFAULT_SPEC_TOML: {sorted(listed ^ parsed)}"
         )
+    numbers = {k for k, v in _leaves_with_values(tomllib.loads(text)) if _is_number(v)}
+    unranged = sorted(k for k in numbers if allowed_text(k) is None)
+    if unranged:  # every number of the spec has its range in spec.RANGES
+        raise ValueError(f"spec reference: no allowed range for {unranged} (spec.RANGES)")
     out = []
     for section, notes, rows in sections:
         if section is None:
@@ -342,9 +354,13 @@ def spec_reference_markdown(text: str) -> str:
         if notes:
             out += [" ".join(notes), ""]
         if rows:
-            out += ["| key | default | unit | meaning |", "| --- | --- | --- | --- |"]
+            out += [
+                "| key | default | unit | allowed | meaning |",
+                "| --- | --- | --- | --- | --- |",
+            ]
             for key, value, unit, meaning, _ in rows:
-                cells = [c.replace("|", "\\|") for c in (value, unit, meaning)]
+                allowed = allowed_text(f"{section}.{key}") or "–"
+                cells = [c.replace("|", "\\|") for c in (value, unit, allowed, meaning)]
                 out.append(f"| `{key}` | " + " | ".join(cells) + " |")
             out.append("")
     return "\n".join(out)

@@ -27,6 +27,7 @@ import threading
 import warnings
 
 from tripodjax._cli import ArgumentParser, finish
+from tripodjax.optimize._texts import label_problem
 
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT, EXIT_WRITE_FAILED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 EXIT_TERMINATED = 143  # 128 + SIGTERM
@@ -148,7 +149,7 @@ def _parse(argv):
         default="0",
         metavar="REV",
         help="the revision of validation.html, the customer's validation document (default 0: "
-        '"Rev. 0")',
+        '"Rev. 0"; at most 80 printable characters)',
     )
     parser.add_argument(
         "--progress",
@@ -274,9 +275,8 @@ def _summary(result):
 
 def _main(argv):
     args = _parse(argv)
-    if not args.revision.strip() or not args.revision.isprintable():
-        problem = f"--revision {args.revision!r} is empty or not printable; give e.g. 1 or B"
-    else:
+    problem = label_problem("--revision", args.revision)  # the spec's rule for its names
+    if problem is None:
         problem = _check_out(args.out)
     if problem:
         print(f"optimize-joint: {problem}", file=sys.stderr)

@@ -18,6 +18,7 @@ import math
 import os
 import sys
 import tomllib
+import typing
 from collections.abc import Mapping
 
 import jax
@@ -25,7 +26,14 @@ import numpy as np
 
 from tripodjax._checks import MAX_GAMMA0, check_layout_domain, real_scalar
 from tripodjax.hertz import MIN_CONFORMITY
-from tripodjax.life import ANGLE_LAWS, read_spectrum_rows
+from tripodjax.life import ANGLE_LAWS, SPECTRUM_COLUMNS, read_spectrum_rows
+from tripodjax.optimize._texts import (
+    MAX_PATH_LENGTH,
+    MAX_TEXT_LENGTH,
+    label_problem,
+    length_problem,
+)
+from tripodjax.outboard import MIN_BALLS
 from tripodjax.vehicle import AXLES, ENGINE_CONDITIONS
 
 MAX_GAMMA0_DEG = math.degrees(MAX_GAMMA0)
@@ -336,17 +344,139 @@ def quantity_unit(name):
     return QUANTITIES[name.partition("[")[0]][0]
 
 
+class Range(typing.NamedTuple):
+    """The allowed values of a spec number: from ``low`` to ``high`` (None: no end), each end
+    excluded when ``*_open``; ``unit`` as the messages write it after a number (" mm", "°")."""
+
+    low: float | None
+    high: float | None
+    low_open: bool = False
+    high_open: bool = False
+    unit: str = ""
+
+    def holds(self, value: float) -> bool:
+        ok = math.isfinite(value)
+        ok = ok and (self.low is None or (value > self.low if self.low_open else value >= self.low))
+        return ok and (
+            self.high is None or (value < self.high if self.high_open else value <= self.high)
+        )
+
+    def text(self) -> str:
+        """E.g. "a finite number > 0 and ≤ 200 mm"."""
+        parts = []
+        if self.low is not None:
+            parts.append(f"{'>' if self.low_open else '≥'} {self.low:g}{self.unit}")
+        if self.high is not None:
+            parts.append(f"{'<' if self.high_open else '≤'} {self.high:g}{self.unit}")
+        return "a finite number " + " and ".join(parts) if parts else "a finite number"
+
+    @property
+    def domain(self) -> tuple:
+        """(low, high, low open): a design variable's domain (its high end is closed)."""
+        return (self.low, self.high, self.low_open)
+
+
+# Limits generous for a passenger car's or a light commercial vehicle's halfshaft and joints
+# (seed §4.3: the workbook's sportscar has 937 kg, M_max 1154 N·m, a 25.8 mm shaft, allowed
+# pressures of 1347–3750 MPa): ten times and more what such a halfshaft sees, yet finite, so
+# that no number of a spec overflows the computation or answers nonsense. A number that a
+# quantity is divided by (a safety, a radius, an allowed pressure, M_max) has a lower limit
+# above 0 for the same reason.
+MAX_TORQUE_NM = 5.0e4  # a 3.5 t van's first gear through a locked differential: < 1e4 N·m
+MIN_PRESSURE_MPA, MAX_PRESSURE_MPA = 100.0, 1.0e4  # hardened bearing steel: 1000–4500 MPa
+MAX_SHAFT_SPEED_RPM = 1.0e4  # a wheel at 300 km/h on a 0.25 m tyre: 3200 rpm
+MAX_JOINT_MM = 200.0  # a joint's radii and diameters (the workbook's: 18–44 mm)
+MAX_CONFORMITY = 2.0  # Ψ = 2 R_g / d (workbook 1.002–1.008)
+SAFETY = Range(1.0, 10.0)  # a safety coefficient on a capacity or a limit [–]
+SHARE = Range(0.0, 1.0)
+ANGLE = Range(0.0, 89.999, unit="°")  # a working angle [deg], below 90°
+# Every number of the spec file: key → its allowed Range (a list's entries each). The one
+# table of the spec's ranges: the checks at parse, the bounds and designs of the design
+# variables (VARIABLES), and the spec reference of the docs (docs/cli.md) read it.
+RANGES = {
+    "design.R": Range(1.0, MAX_JOINT_MM, unit=" mm"),
+    "design.d_roller": Range(1.0, MAX_JOINT_MM, unit=" mm"),
+    "layout.l": Range(10.0, 5000.0, unit=" mm"),
+    "layout.gamma0_deg": Range(0.0, MAX_GAMMA0_DEG, unit="°"),
+    "loads.shock_factor": Range(1.0, 10.0),
+    "loads.gaf_torque": Range(0.0, MAX_TORQUE_NM, unit=" N·m"),
+    "loads.M_max": Range(1.0, MAX_TORQUE_NM, unit=" N·m"),
+    **{
+        f"{joint}.{key}": Range(MIN_PRESSURE_MPA, MAX_PRESSURE_MPA, unit=" MPa")
+        for joint in ("hertz", "outboard")
+        for key in ("P_s", "P_d", "P_sd")
+    },
+    "hertz.C_s": SAFETY,
+    "hertz.conformity": Range(MIN_CONFORMITY, MAX_CONFORMITY),
+    "vehicle.mass_kg": Range(50.0, 1.0e4, unit=" kg"),
+    "vehicle.front_share": SHARE,
+    "vehicle.wheelbase_m": Range(0.5, 10.0, unit=" m"),
+    "vehicle.cg_height_m": Range(0.0, 5.0, unit=" m"),
+    "vehicle.tyre_radius_m": Range(0.1, 2.0, unit=" m"),
+    "vehicle.adhesion": Range(0.01, 3.0),
+    "vehicle.rear_torque_share": SHARE,
+    "vehicle.differential_locking": SHARE,
+    "vehicle.engine_torque_Nm": Range(0.0, 5000.0, unit=" N·m"),
+    "vehicle.engine_speed_rpm": Range(100.0, 2.0e4, unit=" rpm"),
+    "vehicle.load_transfer_per_ratio_N": Range(0.0, 1.0e5, unit=" N"),
+    "vehicle.reverse_load_transfer_N": Range(0.0, 1.0e5, unit=" N"),
+    "vehicle.gears.ratios": Range(0.5, 100.0),
+    "vehicle.gears.reverse": Range(0.5, 100.0),
+    "vehicle.modes.weight": SHARE,
+    **{f"vehicle.modes.use_{c}_pct": Range(0.0, 100.0, unit=" %") for c in ENGINE_CONDITIONS},
+    "life.required_km": Range(1.0, 1.0e7, unit=" km"),
+    "life.torque": Range(0.0, MAX_TORQUE_NM, unit=" N·m"),
+    "life.speed": Range(0.0, MAX_SHAFT_SPEED_RPM, unit=" rpm"),
+    "life.vehicle_speed": Range(0.0, 500.0, unit=" km/h"),
+    "life.share": SHARE,
+    "life.conditions.angle_deg": ANGLE,
+    "life.conditions.share": SHARE,
+    "friction.lam": Range(0.0, 1.0),
+    "friction.mu_slp": Range(0.0, 1.0),
+    "forces.speed_rpm": Range(-MAX_SHAFT_SPEED_RPM, MAX_SHAFT_SPEED_RPM, unit=" rpm"),
+    "forces.mu_trunnion": Range(0.0, 1.0),
+    "forces.contact_angle_deg": ANGLE,
+    "forces.plunge_speed_mm_s": Range(-1.0e4, 1.0e4, unit=" mm/s"),
+    "forces.lts_speed_rpm": Range(-MAX_SHAFT_SPEED_RPM, MAX_SHAFT_SPEED_RPM, unit=" rpm"),
+    "shaft.outer_diameter_mm": Range(1.0, MAX_JOINT_MM, unit=" mm"),
+    "shaft.inner_diameter_mm": Range(0.0, MAX_JOINT_MM, unit=" mm"),
+    "shaft.hardened_depth_mm": Range(0.0, MAX_JOINT_MM / 2, unit=" mm"),
+    "shaft.transition_depth_mm": Range(0.0, MAX_JOINT_MM / 2, unit=" mm"),
+    "shaft.safety": SAFETY,
+    "shaft.core_uts_MPa": Range(MIN_PRESSURE_MPA, MAX_PRESSURE_MPA, unit=" MPa"),
+    "shaft.surface_uts_MPa": Range(MIN_PRESSURE_MPA, MAX_PRESSURE_MPA, unit=" MPa"),
+    "shaft.depth_drop": Range(0.0, 1.0, high_open=True),
+    "shaft.fatigue_ratio": Range(1.0, 10.0, low_open=True),
+    "shaft.allowed_damage": Range(0.01, 10.0),
+    "outboard.ball_diameter_mm": Range(1.0, MAX_JOINT_MM, unit=" mm"),
+    "outboard.pcr_mm": Range(1.0, MAX_JOINT_MM, unit=" mm"),
+    "outboard.conformity": Range(MIN_CONFORMITY, MAX_CONFORMITY),
+    "outboard.longitudinal_conformity": Range(-1.0, 1.0, low_open=True),
+    "outboard.C_s": SAFETY,
+    "outboard.pressure_angle_deg": Range(0.0, 90.0, low_open=True, high_open=True, unit="°"),
+    "outboard.oblique_angle_deg": ANGLE,
+    "outboard.tolerance": Range(0.0, 1.0),
+    "outboard.conditions.angle_deg": ANGLE,
+    "outboard.conditions.share": SHARE,
+    "solver.tolerance": Range(1e-12, 1e-1),
+}
+# The keys the file names freely (any quantity q): an objective's weight and reference, a
+# constraint's limit (a chance constraint's: see _chance).
+OBJECTIVE_WEIGHT = Range(None, None)
+OBJECTIVE_REFERENCE = Range(0.0, None, low_open=True)
+CONSTRAINT_LIMIT = Range(0.0, None, low_open=True)
+
 # Design variable → (section, its value's key inside (γ0 in rad), unit, domain (low, high, low
-# open)). Its key in the file is the variable's own name (gamma0_deg in degrees); report keys add
-# the unit suffix.
+# open): its spec number's Range). Its key in the file is the variable's own name (gamma0_deg in
+# degrees); report keys add the unit suffix.
 VARIABLES = {
-    "R": ("design", "R", "mm", (0.0, None, True)),
-    "d_roller": ("design", "d_roller", "mm", (0.0, None, True)),
-    "l": ("layout", "l", "mm", (0.0, None, True)),
-    "gamma0_deg": ("layout", "gamma0", "deg", (0.0, MAX_GAMMA0_DEG, False)),
-    "conformity": ("hertz", "conformity", "–", (MIN_CONFORMITY, None, False)),
-    "lam": ("friction", "lam", "–", (0.0, None, False)),
-    "mu_slp": ("friction", "mu_slp", "–", (0.0, None, False)),
+    "R": ("design", "R", "mm", RANGES["design.R"].domain),
+    "d_roller": ("design", "d_roller", "mm", RANGES["design.d_roller"].domain),
+    "l": ("layout", "l", "mm", RANGES["layout.l"].domain),
+    "gamma0_deg": ("layout", "gamma0", "deg", RANGES["layout.gamma0_deg"].domain),
+    "conformity": ("hertz", "conformity", "–", RANGES["hertz.conformity"].domain),
+    "lam": ("friction", "lam", "–", RANGES["friction.lam"].domain),
+    "mu_slp": ("friction", "mu_slp", "–", RANGES["friction.mu_slp"].domain),
 }
 # A [shaft] entry as a design variable: "shaft.<list>[<section name>]" [mm], one of these lists.
 SHAFT_VARIABLES = (
@@ -369,13 +499,20 @@ def shaft_variable_name(key, section):
     return f"shaft.{key}[{section}]"
 
 
-def variable_domain(name):
-    """(unit, (low, high, low open)) of a design variable's values; a [shaft] entry's in mm."""
+def variable_range(name):
+    """The Range of a design variable's values in the file (a [shaft] entry's in mm)."""
     entry = shaft_variable(name)
     if entry is None:
-        return VARIABLES[name][2], VARIABLES[name][3]
-    low, low_open, _ = SHAFT_LISTS[entry[0]]
-    return "mm", (low, None, low_open)
+        section, key = VARIABLES[name][0], name
+    else:
+        section, key = "shaft", entry[0]
+    return RANGES[f"{section}.{key}"]
+
+
+def variable_domain(name):
+    """(unit, (low, high, low open)) of a design variable's values; a [shaft] entry's in mm."""
+    unit = VARIABLES[name][2] if shaft_variable(name) is None else "mm"
+    return unit, variable_range(name).domain
 
 
 REPORT_KEYS = {
@@ -397,6 +534,11 @@ INTEGER_LIMITS = {
     "max_outer": (1, 200, ""),  # its upper limit sizes the solve's history (MAX_OUTER_ITERATIONS)
     "inner_steps": (1, 200, ""),
 }
+# The joints' integer counts: key → (low, high, what else).
+COUNT_LIMITS = {
+    "hertz.n_rollers": (1, 12, ""),
+    "outboard.n_balls": (MIN_BALLS, 24, "the balls fitting on the pitch circle"),
+}
 # A solve evaluates the revolution's n_theta angles for each start max_outer · inner_steps times
 # (times the backtracks of each line search, at most MAX_BACKTRACKS + 1 = 31): the product bounds
 # its work. Measured on a 2-core CPU at 1.25 µs per angle and start, the worst case at MAX_WORK is
@@ -406,9 +548,7 @@ MAX_OUTER_ITERATIONS = INTEGER_LIMITS["max_outer"][1]
 MAX_WORK = 1.5e6
 MAX_LIST_LENGTH = 1000
 # Text in a spec: a key or a text value (a name, a choice) is a label of the report's tables and
-# figures, at most MAX_TEXT_LENGTH characters; a file path (PATH_KEYS) at most Linux's PATH_MAX.
-MAX_TEXT_LENGTH = 80
-MAX_PATH_LENGTH = 4096
+# figures, at most MAX_TEXT_LENGTH characters; a file path (PATH_KEYS) at most MAX_PATH_LENGTH.
 PATH_KEYS = ("life.spectrum_file",)
 # Legacy keys that keep working (old name → new name).
 LEGACY_OBJECTIVE = {
@@ -421,19 +561,39 @@ LEGACY_OBJECTIVE = {
 LIFE_LISTS = ("torque", "speed", "vehicle_speed", "share")
 # Keys the default leaves out: giving one replaces what [vehicle] would give.
 OPTIONAL_KEYS = {"loads.M_max", "life.spectrum_file", *(f"life.{k}" for k in LIFE_LISTS)}
-VEHICLE_NUMBERS = {  # key → (low, high, low open, unit)
-    "mass_kg": (0.0, None, True, " kg"),
-    "front_share": (0.0, 1.0, False, ""),
-    "wheelbase_m": (0.0, None, True, " m"),
-    "cg_height_m": (0.0, None, False, " m"),
-    "tyre_radius_m": (0.0, None, True, " m"),
-    "adhesion": (0.0, None, True, ""),
-    "rear_torque_share": (0.0, 1.0, False, ""),
-    "differential_locking": (0.0, 1.0, False, ""),
-    "load_transfer_per_ratio_N": (0.0, None, False, " N"),
-    "reverse_load_transfer_N": (0.0, None, False, " N"),
-}
+VEHICLE_NUMBERS = (  # the [vehicle] section's single numbers (RANGES)
+    "mass_kg",
+    "front_share",
+    "wheelbase_m",
+    "cg_height_m",
+    "tyre_radius_m",
+    "adhesion",
+    "rear_torque_share",
+    "differential_locking",
+    "load_transfer_per_ratio_N",
+    "reverse_load_transfer_N",
+)
 MAX_GEARS = 11
+
+
+def allowed_text(key: str) -> str | None:
+    """What the file allows for a number of the spec, in words (the spec reference of the docs
+    shows it): ``"≥ 1 mm and ≤ 200 mm"`` for ``"design.R"``; None for a key that is no number."""
+    section, _, name = key.rpartition(".")
+    if key in RANGES:
+        rule = RANGES[key]
+    elif section == "solver" and name in INTEGER_LIMITS or key in COUNT_LIMITS:
+        low, high, extra = INTEGER_LIMITS[name] if section == "solver" else COUNT_LIMITS[key]
+        return f"an integer from {low} to {high}" + (f", {extra}" if extra else "")
+    elif section == "objective":
+        rule = OBJECTIVE_WEIGHT if name.startswith("w_") else OBJECTIVE_REFERENCE
+    elif section == "constraints":
+        rule = CONSTRAINT_LIMIT
+    elif section == "bounds" and name in VARIABLES:
+        return f"[lo, hi], lo < hi, each {allowed_text(f'{VARIABLES[name][0]}.{name}')}"
+    else:
+        return None
+    return rule.text().removeprefix("a finite number ")
 
 
 class SpecError(ValueError):
@@ -622,8 +782,9 @@ def _bounded_text(table, path=()):
             _bounded_text(value, path[:-1] + (f"{path[-1]}[{i}]",))
     elif isinstance(table, str):
         limit = MAX_PATH_LENGTH if where in PATH_KEYS else MAX_TEXT_LENGTH
-        if len(table) > limit:
-            raise SpecError(f"{where} is {len(table)} characters long; at most {limit} allowed")
+        problem = length_problem(where, table, limit)
+        if problem:
+            raise SpecError(problem)
     return table
 
 
@@ -652,59 +813,49 @@ def _real(where, value, allowed="a finite number"):
         raise SpecError(str(error)) from None
 
 
-def _number(table, section, key, low=None, high=None, *, low_open=False, high_open=False, unit=""):
-    """A finite number in [low, high] (low excluded when low_open, high when high_open)."""
+def _number(table, section, key, low=None, high=None, *, low_open=False, unit="", rule=None):
+    """A finite number in its Range: ``rule``, or the one of ``low`` … ``unit`` given (a key the
+    file names freely), else the key's in RANGES."""
     where = f"{section}.{key}"
-    value = table[section][key]
-    allowed = _range_text(low, high, low_open, unit, high_open)
-    return _in_range(where, _real(where, value, allowed), low, high, low_open, unit, high_open)
+    if rule is None:
+        given = low is not None or high is not None
+        rule = Range(low, high, low_open, unit=unit) if given else RANGES[where]
+    return _in_range(where, _real(where, table[section][key], rule.text()), rule)
 
 
-def _range_text(low, high, low_open, unit, high_open=False):
-    parts = []
-    if low is not None:
-        parts.append(f"{'>' if low_open else '≥'} {low:g}{unit}")
-    if high is not None:
-        parts.append(f"{'<' if high_open else '≤'} {high:g}{unit}")
-    return "a finite number " + " and ".join(parts) if parts else "a finite number"
-
-
-def _in_range(where, value, low, high, low_open, unit, high_open=False):
-    ok = math.isfinite(value)
-    ok = ok and (low is None or (value > low if low_open else value >= low))
-    ok = ok and (high is None or (value < high if high_open else value <= high))
-    if not ok:
-        allowed = _range_text(low, high, low_open, unit, high_open)
-        raise SpecError(f"{where} = {value!r} is not allowed: {allowed}")
+def _in_range(where, value, rule):
+    """``value`` when its Range ``rule`` holds, else one SpecError naming it and the range."""
+    if not rule.holds(value):
+        raise SpecError(f"{where} = {value!r} is not allowed: {rule.text()}")
     return value
 
 
-def _numbers(table, section, key, low=None, high=None, *, low_open=False, unit=""):
-    """A non-empty list of finite numbers, each in range; errors name the index."""
-    where = f"{section}.{key}"
+def _numbers(table, section, key, rule=None, *, where=None):
+    """A non-empty list of finite numbers, each in its Range (``rule``, else the key's in
+    RANGES); errors name the index after ``where`` (default ``section.key``)."""
+    where = where or f"{section}.{key}"
     node = table
     for part in section.split("."):
         node = node[part]
     values = node[key]
+    rule = rule or RANGES[f"{section}.{key}"]
     if not isinstance(values, list) or not values:
         raise SpecError(f"{where} = {values!r} must be a non-empty list of numbers")
     if len(values) > MAX_LIST_LENGTH:
         raise SpecError(f"{where} has {len(values)} entries; at most {MAX_LIST_LENGTH} allowed")
-    allowed = _range_text(low, high, low_open, unit)
     return [
-        _in_range(
-            f"{where}[{i}]", _real(f"{where}[{i}]", value, allowed), low, high, low_open, unit
-        )
+        _in_range(f"{where}[{i}]", _real(f"{where}[{i}]", value, rule.text()), rule)
         for i, value in enumerate(values)
     ]
 
 
 def _string(table, section, key, allowed):
+    """One of the texts ``allowed``; the message spells the value and the choices as TOML."""
     where = f"{section}.{key}"
     value = table[section][key]
     if not isinstance(value, str) or value not in allowed:
         raise SpecError(
-            f"{where} = {value!r} is not allowed; allowed: {', '.join(repr(a) for a in allowed)}"
+            f"{where} = {_toml(value)} is not allowed; allowed: {', '.join(map(_toml, allowed))}"
         )
     return value
 
@@ -720,6 +871,18 @@ def _integer(table, key):
     if not low <= value <= high or (key == "n_theta" and value % 6):
         limits = f"an integer from {low} to {high}" + (f", {extra}" if extra else "")
         raise SpecError(f"{where} = {_integer_text(value)} is not allowed: {limits}")
+    return value
+
+
+def _count(table, key):
+    """A joint's integer count (COUNT_LIMITS): an int (not a bool, nor a float such as 6.0)."""
+    low, high, _ = COUNT_LIMITS[key]
+    section, name = key.split(".")
+    value = table[section][name]
+    if not isinstance(value, int) or isinstance(value, bool) or not low <= value <= high:
+        raise SpecError(
+            f"{key} = {_integer_text(value)} is not allowed: an integer from {low} to {high}"
+        )
     return value
 
 
@@ -799,9 +962,9 @@ def _objective(table):
         prefix, q = _quantity_key("objective", key, (("w_", ""), ("", "_ref")))
         tab = {"objective": {key: value}}
         if prefix == "w_":
-            weights[q] = _number(tab, "objective", key)
+            weights[q] = _number(tab, "objective", key, rule=OBJECTIVE_WEIGHT)
         else:
-            refs[q] = _number(tab, "objective", key, 0.0, low_open=True)
+            refs[q] = _number(tab, "objective", key, rule=OBJECTIVE_REFERENCE)
     terms = tuple(q for q in QUANTITIES if q in weights)
     if not any(weights[q] != 0 for q in terms):
         raise SpecError("objective has no non-zero weight w_<q>; give at least one")
@@ -814,6 +977,12 @@ def _objective(table):
     for q in terms:
         if q not in refs:
             raise SpecError(f"objective.w_{q} needs objective.{q}_ref (> 0, in {QUANTITIES[q][0]})")
+    for q in refs:  # the spec's one rule for its keys: none is given and left unused
+        if q not in weights:
+            raise SpecError(
+                f"objective.{q}_ref = {refs[q]:g} has no weight objective.w_{q}: a reference "
+                f"enters the objective with its weight only; give w_{q} or leave {q}_ref out"
+            )
     for q in terms:
         if not math.isfinite(weights[q] / refs[q]):
             raise SpecError(
@@ -875,7 +1044,9 @@ def _constraints(table):
             values[key] = chance[2]
             continue
         prefix, q = _quantity_key("constraints", key, (("max_", ""), ("min_", "")))
-        values[key] = _number({"constraints": {key: value}}, "constraints", key, 0.0, low_open=True)
+        values[key] = _number(
+            {"constraints": {key: value}}, "constraints", key, rule=CONSTRAINT_LIMIT
+        )
         names.append((key, q, prefix[:-1]))
     order = {q: i for i, q in enumerate(QUANTITIES)}
     names.sort(key=lambda c: (order[c[1]], c[2]))
@@ -889,27 +1060,29 @@ def _constraints(table):
 
 
 def _check_force_model(structure, values):
-    """SpecError where the objective or a constraint takes a GAF or force quantity and
-    solver.n_theta is below the minimum of the orders (they would alias), or a quantity of the
-    force model (tripodjax.forces) and loads.gaf_torque is 0 (its roller loads over T/3R are
-    0/0, its forces 0)."""
+    """SpecError where the objective or a constraint takes a GAF or force quantity (each judged
+    at loads.gaf_torque) and solver.n_theta is below the minimum of the orders (they would
+    alias), or loads.gaf_torque is 0: the force model's (tripodjax.forces) roller loads over
+    T/3R are then 0/0 and its forces 0, Lee's GAF (friction.gaf_model "stroke" or "printed")
+    0 whatever the design."""
     from tripodjax.kinematics import MIN_N_THETA_ORDERS
 
-    with_orders = [q for q in (*GAF_QUANTITIES, *FORCE_QUANTITIES) if q in structure.needs]
-    if with_orders and structure.n_theta < MIN_N_THETA_ORDERS:
+    used = [q for q in (*FORCE_QUANTITIES, *GAF_QUANTITIES) if q in structure.needs]
+    if used and structure.n_theta < MIN_N_THETA_ORDERS:
+        first = next(q for q in (*GAF_QUANTITIES, *FORCE_QUANTITIES) if q in used)
         raise SpecError(
-            f"solver.n_theta = {structure.n_theta} is not allowed with {with_orders[0]} in the "
+            f"solver.n_theta = {structure.n_theta} is not allowed with {first} in the "
             f"objective or the constraints: at least {MIN_N_THETA_ORDERS} (the orders 3, 6 and 9 "
             "would alias)"
         )
-    used = [q for q in FORCE_QUANTITIES if q in structure.needs]
-    if structure.gaf_model == "forces":
-        used += [q for q in GAF_QUANTITIES if q in structure.needs]
     if used and not values["loads"]["gaf_torque"] > 0:
+        forces = used[0] in FORCE_QUANTITIES or structure.gaf_model == "forces"
+        model = "the force model's " if forces else ""
+        zero = "its forces 0, the roller loads over T/3R 0/0" if forces else "the GAF is 0"
         raise SpecError(
-            f"loads.gaf_torque = {values['loads']['gaf_torque']:g} is not allowed with the force "
-            f"model's {used[0]} in the objective or the constraints: > 0 N·m (the torque at "
-            "which the forces are judged)"
+            f"loads.gaf_torque = {values['loads']['gaf_torque']:g} is not allowed with "
+            f"{model}{used[0]} in the objective or the constraints: > 0 N·m (the torque at "
+            f"which it is judged; at 0 {zero} whatever the design)"
         )
 
 
@@ -927,7 +1100,7 @@ def _no_halfshaft(free, terms, constraints):
 
 
 def _shaft_bound(key, names):
-    """(low, high, low open, unit) of the values of a [bounds] key naming a [shaft] entry."""
+    """SpecError unless a [bounds] key names a [shaft] entry that can be free."""
     entry = shaft_variable(key)
     if entry is None or entry[0] not in SHAFT_VARIABLES or entry[1] not in names:
         raise SpecError(
@@ -935,8 +1108,6 @@ def _shaft_bound(key, names):
             f"with <list> one of {', '.join(SHAFT_VARIABLES)} and <section> one of shaft.names "
             f"({', '.join(names)})"
         )
-    low, low_open, unit = SHAFT_LISTS[entry[0]]
-    return low, None, low_open, unit
 
 
 def _shaft_corners(bounds, lists, names):
@@ -945,30 +1116,25 @@ def _shaft_corners(bounds, lists, names):
     from tripodjax import shaft
 
     for i, name in enumerate(names):
-        keys = {k: shaft_variable_name(k, name) for k in SHAFT_VARIABLES}
+        keys = {k: shaft_variable_name(k, name) for k in SECTION_LISTS}
         if not any(v in bounds for v in keys.values()):
             continue
-        corner = {}
+        corner, where = [], []
         for k, variable in keys.items():
             side = 0 if k == "outer_diameter_mm" else 1  # the smallest Øe, the largest others
-            corner[k] = bounds[variable][side] if variable in bounds else float(lists[k][i])
+            if variable in bounds:
+                corner.append(bounds[variable][side])
+                where.append(f'bounds."{variable}"[{side}]')
+            else:
+                corner.append(float(lists[k][i]))
+                where.append(f"shaft.{k}[{i}]")
         try:
-            shaft.Section(
-                corner["outer_diameter_mm"],
-                corner["hardened_depth_mm"],
-                corner["transition_depth_mm"],
-                corner["inner_diameter_mm"],
-            )
+            shaft.check_section_fits(*corner, names=tuple(where))
         except ValueError as error:
-            where = ", ".join(
-                f'bounds."{v}"[{0 if k == "outer_diameter_mm" else 1}] = {corner[k]:g}'
-                if v in bounds
-                else f"shaft.{k}[{i}] = {corner[k]:g}"
-                for k, v in keys.items()
-            )
+            at = ", ".join(f"{w} = {c:g}" for w, c in zip(where, corner, strict=True))
             raise SpecError(
                 f"bounds of shaft section {name!r}: {error} at the corner of its bounds with the "
-                f"thinnest wall ({where}); narrow the bounds"
+                f"thinnest wall ({at}); narrow the bounds"
             ) from None
 
 
@@ -981,20 +1147,17 @@ def _bounds(table, fixed, shaft_lists, shaft_names):
                 "bounds.shaft is a table; give each [shaft] entry as one quoted key, e.g. "
                 '"shaft.outer_diameter_mm[C-C]" = [18.5, 30.0]'
             )
-        if key in VARIABLES:
-            _, _, unit, (low, high, low_open) = VARIABLES[key]
-            unit = "°" if unit == "deg" else ("" if unit == "–" else f" {unit}")
-        else:
-            low, high, low_open, unit = _shaft_bound(key, shaft_names)
+        if key not in VARIABLES:
+            _shaft_bound(key, shaft_names)
+        where = f'bounds."{key}"' if shaft_variable(key) else f"bounds.{key}"  # as TOML spells it
         if isinstance(value, str) and value == "fixed":
             continue
         if not isinstance(value, list) or len(value) != 2:
-            raise SpecError(f'bounds.{key} = {value!r} must be a pair [lo, hi] or "fixed"')
-        lo, hi = _numbers(
-            {"bounds": {key: value}}, "bounds", key, low, high, low_open=low_open, unit=unit
-        )
+            raise SpecError(f'{where} = {value!r} must be a pair [lo, hi] or "fixed"')
+        rule = variable_range(key)  # the variable's own number's range
+        lo, hi = _numbers({"bounds": {key: value}}, "bounds", key, rule, where=where)
         if not lo < hi:
-            raise SpecError(f"bounds.{key} = {value!r} is not allowed: [lo, hi] with lo < hi")
+            raise SpecError(f"{where} = {value!r} is not allowed: [lo, hi] with lo < hi")
         bounds[key] = (lo, hi)
     _shaft_corners(bounds, shaft_lists, shaft_names)
     # R/l ≤ 0.2 at every corner of the box (and at the fixed values).
@@ -1021,6 +1184,10 @@ def _spectrum(table):
             spectrum = read_spectrum_rows(path)
         except ValueError as error:
             raise SpecError(f"life.spectrum_file: {error}") from None
+        for key, column in zip(LIFE_LISTS[:3], SPECTRUM_COLUMNS, strict=True):
+            for i, value in enumerate(spectrum[key]):  # the [life] list's range, level by level
+                where = f"life.spectrum_file: spectrum file {path} level {i + 1}: {column}"
+                _in_range(where, value, RANGES[f"life.{key}"])
         where = "life.spectrum_file"
     else:
         missing = [k for k in LIFE_LISTS if k not in life]
@@ -1029,8 +1196,7 @@ def _spectrum(table):
                 f"life.{given[0]} is given without life.{missing[0]}: an explicit spectrum needs "
                 "torque, speed, vehicle_speed and share"
             )
-        units = {"torque": " N·m", "speed": " rpm", "vehicle_speed": " km/h", "share": ""}
-        spectrum = {k: _numbers(table, "life", k, 0.0, unit=u) for k, u in units.items()}
+        spectrum = {k: _numbers(table, "life", k) for k in LIFE_LISTS}
         lengths = {k: len(x) for k, x in spectrum.items()}
         if len(set(lengths.values())) != 1:
             raise SpecError(
@@ -1061,27 +1227,24 @@ def _vehicle(table):
     gears, modes = table["vehicle"]["gears"], table["vehicle"]["modes"]
     axle = _string(table, "vehicle", "axle", AXLES)
     numbers = {}
-    for key, (low, high, low_open, unit) in VEHICLE_NUMBERS.items():
-        numbers[key] = _number(table, "vehicle", key, low, high, low_open=low_open, unit=unit)
-    for key, low_open, unit in (
-        ("engine_torque_Nm", False, " N·m"),
-        ("engine_speed_rpm", True, " rpm"),
-    ):
-        entries = _numbers(table, "vehicle", key, 0.0, low_open=low_open, unit=unit)
+    for key in VEHICLE_NUMBERS:
+        numbers[key] = _number(table, "vehicle", key)
+    for key in ("engine_torque_Nm", "engine_speed_rpm"):
+        entries = _numbers(table, "vehicle", key)
         if len(entries) != len(ENGINE_CONDITIONS):
             raise SpecError(
                 f"vehicle.{key} has {len(entries)} entries; allowed: 4, at mean torque, maximum "
                 "torque, maximum power and the engine brake"
             )
         numbers[key] = np.asarray(entries)
-    ratios = _numbers(table, "vehicle.gears", "ratios", 0.0, low_open=True)
+    ratios = _numbers(table, "vehicle.gears", "ratios")
     if len(ratios) > MAX_GEARS:
         raise SpecError(
             f"vehicle.gears.ratios has {len(ratios)} gears; at most {MAX_GEARS} allowed"
         )
-    reverse = _number({"vehicle.gears": gears}, "vehicle.gears", "reverse", 0.0, low_open=True)
+    reverse = _number({"vehicle.gears": gears}, "vehicle.gears", "reverse")
     names = _names(modes.get("names"), "vehicle.modes.names")
-    weight = _numbers(table, "vehicle.modes", "weight", 0.0)
+    weight = _numbers(table, "vehicle.modes", "weight")
     if len(weight) != len(names):
         raise SpecError(
             f"vehicle.modes.weight has {len(weight)} entries and names {len(names)}; they must agree"
@@ -1094,7 +1257,7 @@ def _vehicle(table):
         value = modes.get(key)
         rows = value if isinstance(value, list) and value and isinstance(value[0], list) else None
         if rows is None:
-            rows = [_numbers(table, "vehicle.modes", key, 0.0, 100.0, unit=" %")] * len(names)
+            rows = [_numbers(table, "vehicle.modes", key)] * len(names)
         else:
             if len(rows) != len(names):
                 raise SpecError(
@@ -1105,9 +1268,7 @@ def _vehicle(table):
                     {"vehicle": {"modes": {f"{key}[{i}]": row}}},
                     "vehicle.modes",
                     f"{key}[{i}]",
-                    0.0,
-                    100.0,
-                    unit=" %",
+                    RANGES[f"vehicle.modes.{key}"],
                 )
                 for i, row in enumerate(rows)
             ]
@@ -1128,7 +1289,7 @@ def _vehicle(table):
     share = numbers["rear_torque_share"] if axle == "rear" else 1.0 - numbers["rear_torque_share"]
     if share == 0:
         raise SpecError(
-            f"vehicle.axle = {axle!r} with vehicle.rear_torque_share = "
+            f"vehicle.axle = {_toml(axle)} with vehicle.rear_torque_share = "
             f"{numbers['rear_torque_share']:g}: that axle's shafts carry no torque"
         )
     if not np.any(total * np.asarray(weight)[:, None] > 0) or not any(
@@ -1172,34 +1333,24 @@ def _check(table):
     """Check a merged table; returns the Spec."""
     v = {}
     fixed = {
-        "R": _number(table, "design", "R", 0.0, low_open=True, unit=" mm"),
-        "d_roller": _number(table, "design", "d_roller", 0.0, low_open=True, unit=" mm"),
-        "l": _number(table, "layout", "l", 0.0, low_open=True, unit=" mm"),
-        "gamma0_deg": _number(table, "layout", "gamma0_deg", 0.0, MAX_GAMMA0_DEG, unit="°"),
-        "conformity": _number(table, "hertz", "conformity", MIN_CONFORMITY),
+        key: _number(table, section, key)
+        for key, (section, *_) in VARIABLES.items()
+        if section != "friction"
     }
     v["design"] = {"R": fixed["R"], "d_roller": fixed["d_roller"]}
     v["layout"] = {"l": fixed["l"], "gamma0": math.radians(fixed["gamma0_deg"])}
     v["loads"] = {
-        "shock_factor": _number(table, "loads", "shock_factor", 0.0, low_open=True),
-        "gaf_torque": _number(table, "loads", "gaf_torque", 0.0, unit=" N·m"),
+        "shock_factor": _number(table, "loads", "shock_factor"),
+        "gaf_torque": _number(table, "loads", "gaf_torque"),
     }
     m_max_from_vehicle = "M_max" not in table["loads"]
     if not m_max_from_vehicle:
-        v["loads"]["M_max"] = _number(table, "loads", "M_max", 0.0, low_open=True, unit=" N·m")
-    hertz = {
-        k: _number(table, "hertz", k, 0.0, low_open=True, unit=" MPa")
-        for k in ("P_s", "P_d", "P_sd")
-    }
-    hertz["C_s"] = _number(table, "hertz", "C_s", 0.0, low_open=True)
+        v["loads"]["M_max"] = _number(table, "loads", "M_max")
+    hertz = {k: _number(table, "hertz", k) for k in ("P_s", "P_d", "P_sd", "C_s")}
     hertz["conformity"] = fixed["conformity"]
-    n_rollers = table["hertz"]["n_rollers"]
-    if not isinstance(n_rollers, int) or isinstance(n_rollers, bool) or not 1 <= n_rollers <= 12:
-        raise SpecError(
-            f"hertz.n_rollers = {_integer_text(n_rollers)} is not allowed: an integer from 1 to 12"
-        )
+    n_rollers = _count(table, "hertz.n_rollers")
     v["hertz"] = hertz
-    life = {"required_km": _number(table, "life", "required_km", 0.0, low_open=True, unit=" km")}
+    life = {"required_km": _number(table, "life", "required_km")}
     angle_law = _string(table, "life", "angle_law", ANGLE_LAWS)
     spectrum_from_vehicle = not any(k in table["life"] for k in (*LIFE_LISTS, "spectrum_file"))
     if not spectrum_from_vehicle:
@@ -1218,10 +1369,10 @@ def _check(table):
                 f"unknown key friction.{key}; allowed here: gaf_model, grease, lam, mu_slp"
             )
     if "mu_slp" in table["friction"]:
-        mu_slp = _number(table, "friction", "mu_slp", 0.0)
+        mu_slp = _number(table, "friction", "mu_slp")
     else:
         mu_slp = GREASE_MU_SLP[grease]
-    v["friction"] = {"lam": _number(table, "friction", "lam", 0.0), "mu_slp": mu_slp}
+    v["friction"] = {"lam": _number(table, "friction", "lam"), "mu_slp": mu_slp}
     fixed.update(v["friction"])
     gaf_model = _string(table, "friction", "gaf_model", GAF_MODELS)
     v["forces"] = _forces(table)
@@ -1267,7 +1418,7 @@ def _check(table):
     # The iteration counts are numbers (the solve's loop bounds), not structure: a new count
     # reuses the compiled solve, whose history arrays hold MAX_OUTER_ITERATIONS + 1 entries.
     v["solver"] = {
-        "tolerance": _number(table, "solver", "tolerance", 1e-12, 1e-1),
+        "tolerance": _number(table, "solver", "tolerance"),
         **{k: np.asarray(float(sizes.pop(k))) for k in ("max_outer", "inner_steps")},
     }
     structure = Structure(
@@ -1305,8 +1456,8 @@ def _check(table):
 def _conditions(table, section):
     """A [<section>.conditions] table: (angles [rad], shares, names), checked."""
     where = f"{section}.conditions"
-    angles = _numbers(table, where, "angle_deg", 0.0, 89.999, unit="°")
-    shares = _numbers(table, where, "share", 0.0)
+    angles = _numbers(table, where, "angle_deg")
+    shares = _numbers(table, where, "share")
     _shares(f"{where}.share", shares)
     names = table[section]["conditions"].get(
         "names", [f"condition {i + 1}" for i in range(len(angles))]
@@ -1327,69 +1478,55 @@ def _names(names, where, kind="a non-empty list of strings"):
     if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
         raise SpecError(f"{where} = {names!r} must be {kind}")
     for i, name in enumerate(names):
-        if not name.strip() or not name.isprintable():
-            raise SpecError(
-                f"{where}[{i}] = {name!r} is not allowed: a name of printable characters, not "
-                "empty or blank (no control characters such as a newline)"
-            )
+        problem = label_problem(f"{where}[{i}]", name)  # the rule of --revision too
+        if problem:
+            raise SpecError(problem)
     if len(set(names)) != len(names):
         raise SpecError(f"{where} = {names!r} must not repeat a name")
     return names
 
 
-# [shaft] lists, one entry per section: key → (low, low open, unit).
-SHAFT_LISTS = {
-    "outer_diameter_mm": (0.0, True, " mm"),
-    "inner_diameter_mm": (0.0, False, " mm"),
-    "hardened_depth_mm": (0.0, False, " mm"),
-    "transition_depth_mm": (0.0, False, " mm"),
-    "safety": (1.0, False, ""),
-}
+# [shaft] lists, one entry per section (their ranges in RANGES); a section's dimensions in the
+# order of tripodjax.shaft.check_section_fits (Øe, h, t, Øi).
+SHAFT_LISTS = (*SHAFT_VARIABLES, "safety")
+SECTION_LISTS = (
+    "outer_diameter_mm",
+    "hardened_depth_mm",
+    "transition_depth_mm",
+    "inner_diameter_mm",
+)
 
 
 def _shaft(table):
     """The [shaft] section: (numbers, section names, reading), each relation checked once, by
-    tripodjax.shaft's own Section and Material (the message names the section)."""
+    tripodjax.shaft's own rules (the message names the keys)."""
     from tripodjax import shaft
 
     names = _names(table["shaft"]["names"], "shaft.names")
-    lists = {
-        key: _numbers(table, "shaft", key, low, low_open=low_open, unit=unit)
-        for key, (low, low_open, unit) in SHAFT_LISTS.items()
-    }
+    lists = {key: _numbers(table, "shaft", key) for key in SHAFT_LISTS}
     for key, entries in lists.items():
         if len(entries) != len(names):
             raise SpecError(
                 f"shaft.{key} has {len(entries)} entries and shaft.names {len(names)}; one per "
                 "section"
             )
-    numbers = {
-        "core_uts_MPa": _number(table, "shaft", "core_uts_MPa", 0.0, low_open=True, unit=" MPa"),
-        "surface_uts_MPa": _number(
-            table, "shaft", "surface_uts_MPa", 0.0, low_open=True, unit=" MPa"
-        ),
-        "depth_drop": _number(table, "shaft", "depth_drop", 0.0, 1.0, high_open=True),
-        "fatigue_ratio": _number(table, "shaft", "fatigue_ratio", 1.0, low_open=True),
-        "allowed_damage": _number(table, "shaft", "allowed_damage", 0.0, low_open=True),
-    }
+    keys = ("core_uts_MPa", "surface_uts_MPa", "depth_drop", "fatigue_ratio", "allowed_damage")
+    numbers = {key: _number(table, "shaft", key) for key in keys}
     reading = _string(table, "shaft", "reading", shaft.READINGS)
+    try:
+        shaft.check_material_strength(
+            *(numbers[k] for k in keys[:3]), names=tuple(f"shaft.{k}" for k in keys[:3])
+        )
+    except ValueError as error:
+        raise SpecError(str(error)) from None
     for i, name in enumerate(names):
         try:
-            shaft.Section(
-                lists["outer_diameter_mm"][i],
-                lists["hardened_depth_mm"][i],
-                lists["transition_depth_mm"][i],
-                lists["inner_diameter_mm"][i],
-            )
-            shaft.Material(
-                numbers["core_uts_MPa"],
-                numbers["surface_uts_MPa"],
-                numbers["depth_drop"],
-                numbers["fatigue_ratio"],
-                lists["safety"][i],
+            shaft.check_section_fits(
+                *(lists[k][i] for k in SECTION_LISTS),
+                names=tuple(f"shaft.{k}[{i}]" for k in SECTION_LISTS),
             )
         except ValueError as error:
-            raise SpecError(f"shaft section {name!r} (entry {i} of the lists): {error}") from None
+            raise SpecError(f"shaft section {name!r}: {error}") from None
     return {**{k: np.asarray(x) for k, x in lists.items()}, **numbers}, tuple(names), reading
 
 
@@ -1397,39 +1534,19 @@ def _outboard(table):
     """The [outboard] section: (numbers, ball count, reading, condition names)."""
     from tripodjax import outboard
 
-    n_balls = table["outboard"]["n_balls"]
-    low = outboard.MIN_BALLS
-    if not isinstance(n_balls, int) or isinstance(n_balls, bool) or not low <= n_balls <= 24:
-        raise SpecError(
-            f"outboard.n_balls = {_integer_text(n_balls)} is not allowed: an integer from {low} "
-            "to 24"
-        )
-    numbers = {
-        key: _number(table, "outboard", key, 0.0, low_open=True, unit=unit)
-        for key, unit in (
-            ("ball_diameter_mm", " mm"),
-            ("pcr_mm", " mm"),
-            ("P_s", " MPa"),
-            ("P_d", " MPa"),
-            ("P_sd", " MPa"),
-            ("C_s", ""),
-        )
-    }
+    n_balls = _count(table, "outboard.n_balls")
+    keys = ("ball_diameter_mm", "pcr_mm", "P_s", "P_d", "P_sd", "C_s")
+    numbers = {key: _number(table, "outboard", key) for key in keys}
     try:
         keys = ("outboard.ball_diameter_mm", "outboard.pcr_mm", "outboard.n_balls")
         outboard.check_balls_fit(numbers["ball_diameter_mm"], numbers["pcr_mm"], n_balls, keys)
     except ValueError as error:
         raise SpecError(str(error)) from None
-    numbers["conformity"] = _number(table, "outboard", "conformity", MIN_CONFORMITY)
-    numbers["longitudinal_conformity"] = _number(
-        table, "outboard", "longitudinal_conformity", -1.0, 1.0, low_open=True
-    )
-    pressure = _number(
-        table, "outboard", "pressure_angle_deg", 0.0, 90.0, low_open=True, high_open=True, unit="°"
-    )
-    oblique = _number(table, "outboard", "oblique_angle_deg", 0.0, 89.999, unit="°")
+    for key in ("conformity", "longitudinal_conformity", "tolerance"):
+        numbers[key] = _number(table, "outboard", key)
+    pressure = _number(table, "outboard", "pressure_angle_deg")
+    oblique = _number(table, "outboard", "oblique_angle_deg")
     numbers["pressure_angle"], numbers["oblique_angle"] = map(math.radians, (pressure, oblique))
-    numbers["tolerance"] = _number(table, "outboard", "tolerance", 0.0)
     numbers["condition_angle"], numbers["condition_share"], names = _conditions(table, "outboard")
     reading = _string(table, "outboard", "reading", outboard.READINGS)
     return numbers, n_balls, reading, names
@@ -1437,25 +1554,25 @@ def _outboard(table):
 
 def _forces(table):
     """The [forces] section (tripodjax.forces.ForceInputs' numbers), in internal units."""
-    plunge = _number(table, "forces", "plunge_speed_mm_s", unit=" mm/s")
+    plunge = _number(table, "forces", "plunge_speed_mm_s")
     if plunge == 0:
         raise SpecError(
             "forces.plunge_speed_mm_s = 0.0 is not allowed: a finite speed, not 0 (> 0 into the "
             "pot, < 0 out: the LTS opposes a plunge)"
         )
-    speed = _number(table, "forces", "speed_rpm", unit=" rpm")
+    speed = _number(table, "forces", "speed_rpm")
     if speed == 0:
         raise SpecError(
             "forces.speed_rpm = 0.0 is not allowed: a finite speed, not 0 (the running case needs "
             "a direction; its size sets the friction power alone)"
         )
-    angle = _number(table, "forces", "contact_angle_deg", 0.0, 89.999, unit="°")
+    angle = _number(table, "forces", "contact_angle_deg")
     return {
         "speed_rpm": speed,
-        "mu_trunnion": _number(table, "forces", "mu_trunnion", 0.0),
+        "mu_trunnion": _number(table, "forces", "mu_trunnion"),
         "contact_angle": math.radians(angle),
         "plunge_speed_mm_s": plunge,
-        "lts_speed_rpm": _number(table, "forces", "lts_speed_rpm", unit=" rpm"),
+        "lts_speed_rpm": _number(table, "forces", "lts_speed_rpm"),
     }
 
 

@@ -131,3 +131,17 @@ def test_the_speed_page_tables_come_from_the_committed_bench_output():
     assert rows[0].split(" | ")[1] == f"{sweep['variants']['newton/float64']['points_per_s']:.3g}"
     fidelity = [line for line in rendered.splitlines() if line.startswith("| **")]
     assert len(fidelity) == 1, "the default fidelity setting, in bold, once"
+
+
+def test_the_spec_reference_gives_each_numbers_allowed_range():
+    """docs/cli.md's table of the spec's keys has an *allowed* column, from spec.RANGES: a
+    number's range with its unit, a count's integers; a text's choices stay in its meaning."""
+    from tripodjax import optimize
+
+    page = _hooks().spec_reference_markdown(optimize.DEFAULT_SPEC_TOML)
+    assert "| key | default | unit | allowed | meaning |" in page
+    assert "| `tyre_radius_m` | `0.30773` | – | ≥ 0.1 m and ≤ 2 m |" in page
+    assert "| `C_s` | `1.2` | – | ≥ 1 and ≤ 10 |" in page
+    assert "| `n_rollers` | `3` | – | an integer from 1 to 12 |" in page
+    assert "| `R` | `[15.0, 40.0]` | mm | [lo, hi], lo < hi, each ≥ 1 mm and ≤ 200 mm |" in page
+    assert '| `axle` | `"rear"` | – | – |' in page

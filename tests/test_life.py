@@ -335,6 +335,14 @@ def test_spectrum_csv_from_revolutions_and_hours(tmp_path):
             "torque_Nm,speed_rpm,vehicle_speed_kmh,hours\n5,5,5,nan\n",
             "line 2: hours = nan is not allowed",
         ),
+        (  # which column would count? (the first did, silently)
+            "torque_Nm,speed_rpm,vehicle_speed_kmh,hours,hours\n5,5,5,1,2\n",
+            "s.csv line 1: the column hours is given twice",
+        ),
+        (
+            "torque_Nm,speed_rpm,torque_Nm,vehicle_speed_kmh,hours\n5,5,6,5,1\n",
+            "s.csv line 1: the column torque_Nm is given twice",
+        ),
     ],
 )
 def test_spectrum_csv_names_the_bad_line(tmp_path, text, message):
@@ -381,6 +389,16 @@ def test_spec_spectrum_file_is_read_relative_to_the_spec_folder(tmp_path, monkey
     )
     with pytest.raises(
         optimize.SpecError, match=r"bad.csv line 3: speed_rpm = 'x' is not a number"
+    ):
+        optimize.load_spec(folder / "bad.toml")
+    # A file's levels within the [life] lists' ranges (1e300 N·m gave a plausible life before).
+    (folder / "data" / "bad.csv").write_text(
+        "torque_Nm,speed_rpm,vehicle_speed_kmh,hours\n1000,300,40,1\n1e300,800,100,3\n"
+    )
+    with pytest.raises(
+        optimize.SpecError,
+        match=r"bad.csv level 2: torque_Nm = 1e\+300 is not allowed: a finite number ≥ 0 N·m "
+        r"and ≤ 50000 N·m$",
     ):
         optimize.load_spec(folder / "bad.toml")
 

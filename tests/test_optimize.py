@@ -219,11 +219,14 @@ LISTS = (
         ("[shaft]\nfatigue_ratio = 1.0", "shaft.fatigue_ratio = 1.0 is not allowed"),
         (
             "[shaft]\ninner_diameter_mm = [0.0, 0.0, 26.0, 0.0, 0.0]",
-            "shaft section 'C-C' (entry 2 of the lists): Section.inner_diameter = 26.0",
+            "shaft section 'C-C': shaft.inner_diameter_mm[2] = 26.0 is outside the allowed range: "
+            "0 ≤ shaft.inner_diameter_mm[2] < shaft.outer_diameter_mm[2] (= 25.8 mm)",
         ),
         (
             "[shaft]\nhardened_depth_mm = [5.6, 5.6, 5.6, 2.5, 14.0]",
-            "shaft section 'inboard stem' (entry 4 of the lists): Section.hardened_depth",
+            "shaft section 'inboard stem': shaft.hardened_depth_mm[4] + "
+            "shaft.transition_depth_mm[4] = 15.1 is outside the allowed range: ≤ the wall "
+            "(shaft.outer_diameter_mm[4] − shaft.inner_diameter_mm[4])/2 (= 14.22 mm)",
         ),
         ('[shaft]\nnames = ["A", "A", "B", "C", "D"]', "shaft.names = ['A', 'A', 'B', 'C', 'D']"),
         ("[shaft]\ncore_uts_MPa = -690.0", "shaft.core_uts_MPa = -690.0 is not allowed"),
@@ -244,7 +247,7 @@ LISTS = (
         ("[forces]\nmu_trunnion = -0.1", "forces.mu_trunnion = -0.1 is not allowed"),
         ("[forces]\nlts_speed_rpm = nan", "forces.lts_speed_rpm = nan is not allowed"),
         ("[forces]\nmu = 0.1", "unknown key forces.mu; allowed here: contact_angle_deg"),
-        ('[friction]\ngaf_model = "lee"', "allowed: 'stroke', 'printed', 'forces'"),
+        ('[friction]\ngaf_model = "lee"', 'allowed: "stroke", "printed", "forces"'),
         ("[bounds]\nR = [30.0, 20.0]", "bounds.R = [30.0, 20.0] is not allowed"),
         ("[bounds]\nR = [15.0, 150.0]", "R/l ≤ 0.2"),
         ("[bounds]\nd_roller = [20.0, inf]", "bounds.d_roller[1] = inf is not allowed"),
@@ -265,12 +268,15 @@ LISTS = (
             "life.spectrum_file and life.torque both",
         ),
         ('[life]\nspectrum_file = "no/such.csv"', "life.spectrum_file: cannot read spectrum file"),
-        ('[life]\nangle_law = "cosine"', "life.angle_law = 'cosine' is not allowed"),
+        ('[life]\nangle_law = "cosine"', 'life.angle_law = "cosine" is not allowed'),
         (
             "[constraints]\nmax_life_km = 5e4",
             "max_life_km = 50000 is below life.required_km = 100000",
         ),
-        ('[vehicle]\naxle = "middle"', "vehicle.axle = 'middle' is not allowed"),
+        (
+            '[vehicle]\naxle = "middle"',
+            'vehicle.axle = "middle" is not allowed; allowed: "rear", "front"',
+        ),
         ("[vehicle]\nengine_torque_Nm = [1.0, 2.0]", "vehicle.engine_torque_Nm has 2 entries"),
         (
             "[vehicle.gears]\nratios = [3.0, 2.0]",
@@ -284,7 +290,7 @@ LISTS = (
         ),
         ("[vehicle.modes]\nuse_T_max_pct = " + str([90.0] * 7), "sum to"),
         ("[vehicle]\nfront_share = 1.5", "vehicle.front_share = 1.5 is not allowed"),
-        ('[vehicle]\naxle = "front"', "vehicle.axle = 'front' with vehicle.rear_torque_share = 1"),
+        ('[vehicle]\naxle = "front"', 'vehicle.axle = "front" with vehicle.rear_torque_share = 1'),
         (
             "[vehicle.modes]\nweight = [0.0, 0.0, 1.0]\nuse_T_max_pct = [[1, 1, 1, 1, 1, 1, 1], "
             "[1, 1, 1, 1, 1, 1, 1], [0, 0, 0, 0, 0, 0, 0]]\nuse_P_max_pct = [0, 0, 0, 0, 0, 0, 0]",
@@ -292,7 +298,10 @@ LISTS = (
         ),
         ("[vehicle]\nengine_torque_Nm = [0.0, 0.0, 0.0, 0.0]", "the life would be infinite"),
         ("[life.conditions]\nnames = 5", "life.conditions.names = 5 must be a list of strings"),
-        ('[loads]\nM_max = "big"', 'loads.M_max = "big" is not allowed: a finite number > 0 N·m'),
+        (
+            '[loads]\nM_max = "big"',
+            'loads.M_max = "big" is not allowed: a finite number ≥ 1 N·m and ≤ 50000 N·m',
+        ),
         ("[solver]\nn_theta = 100", "solver.n_theta = 100 is not allowed"),
         ("[solver]\nn_theta = 9999996", "from 6 to 3600"),
         ("[solver]\nstarts = 1e20", "solver.starts"),
@@ -301,11 +310,69 @@ LISTS = (
             "solver.n_theta × solver.starts × solver.max_outer × solver.inner_steps",
         ),
         ("[solver]\nn_theta = 360\nstarts = 16", "= 360 × 16 × 25 × 30 = 4.32e+06 is not allowed"),
-        ('[friction]\ngrease = "C"', "friction.grease = 'C' is not allowed"),
+        ('[friction]\ngrease = "C"', 'friction.grease = "C" is not allowed'),
         ("[objective]\nw_sizes = 1.0", "unknown key objective.w_sizes; allowed"),
         ("[constraints]\nmax_colour = 1.0", "gaf_rms"),
         ("[bounds]\ngamma0_deg = [10.0, 50.0]", "bounds.gamma0_deg[1] = 50.0"),
         ("[constraints]\nmin_R_over_d = 0.9", "no design can meet both"),
+        # Upper limits: each of these overflowed later, or answered a plausible number.
+        ("[bounds]\nd_roller = [20.0, 1e300]", "bounds.d_roller[1] = 1e+300 is not allowed: a"),
+        ("[bounds]\nl = [200.0, 1e300]", "bounds.l[1] = 1e+300 is not allowed"),
+        ("[bounds]\nlam = [0.0, 1e300]", "bounds.lam[1] = 1e+300 is not allowed"),
+        ("[bounds]\nmu_slp = [0.0, 1e300]", "bounds.mu_slp[1] = 1e+300 is not allowed"),
+        ("[bounds]\nconformity = [1.001, 1e300]", "bounds.conformity[1] = 1e+300 is not"),
+        (
+            "[vehicle]\nengine_speed_rpm = [1e300, 3000.0, 5500.0, 3000.0]",
+            "vehicle.engine_speed_rpm[0] = 1e+300 is not allowed: a finite number ≥ 100 rpm "
+            "and ≤ 20000 rpm",
+        ),
+        ("[vehicle]\ntyre_radius_m = 1e300", "vehicle.tyre_radius_m = 1e+300 is not allowed"),
+        ("[vehicle]\nmass_kg = 1e300", "vehicle.mass_kg = 1e+300 is not allowed"),
+        ("[vehicle]\nmass_kg = " + "1" + "0" * 65, "vehicle.mass_kg = 1e+65 is not allowed"),
+        ("[vehicle]\nadhesion = 1e300", "vehicle.adhesion = 1e+300 is not allowed"),
+        ("[forces]\nlts_speed_rpm = 1e300", "forces.lts_speed_rpm = 1e+300 is not allowed"),
+        ("[forces]\nspeed_rpm = -1e300", "forces.speed_rpm = -1e+300 is not allowed"),
+        ("[shaft]\nallowed_damage = 1e300", "shaft.allowed_damage = 1e+300 is not allowed"),
+        (
+            "[shaft]\nouter_diameter_mm = [1e300, 27.5, 25.8, 30.685, 28.44]",
+            "shaft.outer_diameter_mm[0] = 1e+300 is not allowed",
+        ),
+        ("[shaft]\nsafety = [1e300, 1.2, 1.2, 1.3, 1.2]", "shaft.safety[0] = 1e+300 is not"),
+        ("[shaft]\ncore_uts_MPa = 1e300", "shaft.core_uts_MPa = 1e+300 is not allowed"),
+        ("[outboard]\npcr_mm = 1e300", "outboard.pcr_mm = 1e+300 is not allowed"),
+        ("[outboard]\nP_s = 1e300", "outboard.P_s = 1e+300 is not allowed"),
+        ("[outboard]\ntolerance = 1e300", "outboard.tolerance = 1e+300 is not allowed"),
+        ("[outboard]\nconformity = 1e300", "outboard.conformity = 1e+300 is not allowed"),
+        ("[hertz]\nconformity = 1e300", "hertz.conformity = 1e+300 is not allowed"),
+        ("[hertz]\nP_s = 1e300", "hertz.P_s = 1e+300 is not allowed"),
+        ("[loads]\nshock_factor = 1e300", "loads.shock_factor = 1e+300 is not allowed"),
+        ("[life]\nrequired_km = 1e300", "life.required_km = 1e+300 is not allowed"),
+        (LISTS.replace("1154.0", "1e300"), "life.torque[0] = 1e+300 is not allowed"),
+        # ... and lower limits above 0 for numbers that divide.
+        ("[hertz]\nC_s = 1e-300", "hertz.C_s = 1e-300 is not allowed: a finite number ≥ 1"),
+        ("[outboard]\nC_s = 1e-300", "outboard.C_s = 1e-300 is not allowed"),
+        ("[loads]\nM_max = 1e-300", "loads.M_max = 1e-300 is not allowed"),
+        (  # the default stroke model's GAF at 0 N·m is 0, whatever the design
+            "[loads]\ngaf_torque = 0.0",
+            "loads.gaf_torque = 0 is not allowed with gaf_rms in the objective or the "
+            "constraints: > 0 N·m",
+        ),
+        (
+            "[objective]\neccentricity_ref = 1.0",
+            "objective.eccentricity_ref = 1 has no weight objective.w_eccentricity",
+        ),
+        ("[vehicle]\naxle = true", 'vehicle.axle = true is not allowed; allowed: "rear", "front"'),
+        (  # the spec's keys, not the library's fields
+            "[shaft]\ncore_uts_MPa = 3000.0",
+            "shaft.surface_uts_MPa = 2180.0 is outside the allowed range: shaft.surface_uts_MPa "
+            "(1 − shaft.depth_drop) ≥ shaft.core_uts_MPa (= 3000 MPa)",
+        ),
+        (
+            '[bounds]\n"shaft.inner_diameter_mm[C-C]" = [0.0, 25.0]',
+            "bounds of shaft section 'C-C': shaft.hardened_depth_mm[2] + "
+            "shaft.transition_depth_mm[2] = 9.1 is outside the allowed range: ≤ the wall "
+            '(shaft.outer_diameter_mm[2] − bounds."shaft.inner_diameter_mm[C-C]"[1])/2 (= 0.4 mm)',
+        ),
     ],
 )
 def test_bad_specs_name_the_key(text, message):

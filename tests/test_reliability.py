@@ -184,12 +184,13 @@ def test_distributions_against_scipy():
 
 
 def test_a_normal_design_variable_is_truncated_at_its_physical_bound():
-    """conformity ≥ 1.0005 (hertz.MIN_CONFORMITY) for every u, however wide the normal."""
+    """conformity ≥ 1.0005 (hertz.MIN_CONFORMITY) for every u, however wide the normal (and
+    ≤ 2, the spec's upper limit, 99.8 sd away: no mass cut off there)."""
     spec = optimize.parse_spec(
         '[uncertainty]\nconformity = { distribution = "normal", sd = 0.01 }\n'
     )
     (entry,) = spec.structure.uncertainty
-    assert entry.truncate_low and not entry.truncate_high
+    assert entry.truncate_low and entry.truncate_high
     u = np.linspace(-35.0, 35.0, 141)[:, None]
     with jax.enable_x64(True):
         out = np.asarray(uncertainty.realize((entry,), spec.values["uncertainty"], [1.002], u))

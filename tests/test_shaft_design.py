@@ -242,7 +242,9 @@ def test_without_a_vehicle_the_halfshaft_is_not_a_constraint():
     [
         (
             f'[bounds]\n"{FREE}" = [11.0, 34.0]',
-            f"bounds of shaft section '{STEM}': Section.hardened_depth + transition_depth = 6",
+            f"bounds of shaft section '{STEM}': shaft.hardened_depth_mm[3] + "
+            f"shaft.transition_depth_mm[3] = 6.0 is outside the allowed range: ≤ the wall "
+            f'(bounds."{FREE}"[0] − shaft.inner_diameter_mm[3])/2 (= 5.5 mm)',
         ),
         (
             '[bounds]\n"shaft.outer_diameter_mm[D-D]" = [20.0, 30.0]',
@@ -252,15 +254,17 @@ def test_without_a_vehicle_the_halfshaft_is_not_a_constraint():
         ('[bounds]\n"shaft.safety[C-C]" = [1.0, 2.0]', "unknown key bounds.shaft.safety[C-C]"),
         (
             '[bounds]\n"shaft.inner_diameter_mm[C-C]" = [-1.0, 2.0]',
-            "bounds.shaft.inner_diameter_mm[C-C][0] = -1.0 is not allowed: a finite number ≥ 0 mm",
+            'bounds."shaft.inner_diameter_mm[C-C]"[0] = -1.0 is not allowed: a finite number '
+            "≥ 0 mm and ≤ 200 mm",
         ),
         (
             '[bounds]\n"shaft.inner_diameter_mm[C-C]" = [2.0, 1.0]',
-            "bounds.shaft.inner_diameter_mm[C-C] = [2.0, 1.0] is not allowed: [lo, hi] with lo < hi",
+            'bounds."shaft.inner_diameter_mm[C-C]" = [2.0, 1.0] is not allowed: [lo, hi] with lo < hi',
         ),
         (
             '[bounds]\n"shaft.hardened_depth_mm[C-C]" = [1.0, 10.0]',
-            "bounds of shaft section 'C-C': Section.hardened_depth + transition_depth = 13.5",
+            "bounds of shaft section 'C-C': bounds.\"shaft.hardened_depth_mm[C-C]\"[1] + "
+            "shaft.transition_depth_mm[2] = 13.5 is outside the allowed range",
         ),
         (
             '[bounds]\nshaft.outer_diameter_mm."C-C" = [20.0, 30.0]',

@@ -436,6 +436,12 @@ def read_spectrum_rows(path: str | os.PathLike) -> dict[str, list[float]]:
         )
     header_line, header = rows[0]
     header = [h.strip() for h in header]
+    twice = next((h for h in (*SPECTRUM_COLUMNS, *SPECTRUM_AMOUNTS) if header.count(h) > 1), None)
+    if twice is not None:
+        raise ValueError(
+            f"spectrum file {path} line {header_line}: the column {twice} is given twice in the "
+            f"header {header}; give each column once"
+        )
     amounts = [a for a in SPECTRUM_AMOUNTS if a in header]
     missing = [c for c in SPECTRUM_COLUMNS if c not in header]
     if missing or len(amounts) != 1:

@@ -115,6 +115,8 @@ __all__ = [
     "Material",
     "Section",
     "StaticCheck",
+    "check_material_strength",
+    "check_section_fits",
     "fatigue_check",
     "fatigue_cycles",
     "polar_moment",
@@ -173,27 +175,52 @@ class Section:
         for k in ("hardened_depth", "transition_depth", "inner_diameter"):
             check_non_negative(f"Section.{k}", getattr(self, k), " mm")
         _shape(self)
-        arrays = _concrete(
-            self.outer_diameter, self.inner_diameter, self.hardened_depth, self.transition_depth
+        check_section_fits(
+            self.outer_diameter, self.hardened_depth, self.transition_depth, self.inner_diameter
         )
-        if arrays is None:
-            return
-        outer, inner, h, t = np.broadcast_arrays(*arrays)
-        check(
-            "Section.inner_diameter",
-            inner,
-            lambda a: a < outer,
-            f"0 ≤ inner_diameter < outer_diameter (= {_first(outer, a=inner >= outer)} mm)",
-        )
-        wall = (outer - inner) / 2.0
-        # on the wall up to rounding: 1e-12 of it, or a few ulps of a float32 section's dtype
-        beyond = (h + t > wall * (1.0 + 1e-12)) & ~_at_most(h + t, wall, *arrays)
-        check(
-            "Section.hardened_depth + transition_depth",
-            h + t,
-            lambda a: ~beyond,
-            f"h + t ≤ the wall (Øe − Øi)/2 (= {_first(wall, a=beyond)} mm)",
-        )
+
+
+SECTION_NAMES = (
+    "Section.outer_diameter",
+    "Section.hardened_depth",
+    "Section.transition_depth",
+    "Section.inner_diameter",
+)
+
+
+def check_section_fits(
+    outer_diameter: ArrayLike,
+    hardened_depth: ArrayLike,
+    transition_depth: ArrayLike,
+    inner_diameter: ArrayLike = 0.0,
+    names: tuple = SECTION_NAMES,
+) -> None:
+    """A section's dimensions [mm] fit together: Øi < Øe and h + t ≤ the wall (Øe − Øi)/2, for
+    concrete values (traced ones are not checked). ``names`` name Øe, h, t and Øi in the
+    error (default: `Section`'s fields; the spec gives its keys)."""
+    arrays = _concrete(outer_diameter, inner_diameter, hardened_depth, transition_depth)
+    if arrays is None:
+        return
+    outer, inner, h, t = np.broadcast_arrays(*arrays)
+    fields = names == SECTION_NAMES  # the fields' own messages, "h + t ≤ the wall (Øe − Øi)/2"
+    short = [n.removeprefix("Section.") for n in names] if fields else list(names)
+    number = repr if fields else "{:g}".format  # a caller's keys: its numbers as a file's
+    check(
+        names[3],
+        inner,
+        lambda a: a < outer,
+        f"0 ≤ {short[3]} < {short[0]} (= {number(_first(outer, a=inner >= outer))} mm)",
+    )
+    wall = (outer - inner) / 2.0
+    # on the wall up to rounding: 1e-12 of it, or a few ulps of a float32 section's dtype
+    beyond = (h + t > wall * (1.0 + 1e-12)) & ~_at_most(h + t, wall, *arrays)
+    rule = "h + t ≤ the wall (Øe − Øi)/2" if fields else f"≤ the wall ({short[0]} − {short[3]})/2"
+    check(
+        f"{names[1]} + {short[2]}",
+        h + t,
+        lambda a: ~beyond,
+        f"{rule} (= {number(_first(wall, a=beyond))} mm)",
+    )
 
 
 def _first(values, a):
@@ -227,17 +254,35 @@ class Material:
         check_range("Material.fatigue_ratio", self.fatigue_ratio, 1.0, low_open=True)
         check_range("Material.safety", self.safety, 1.0)
         _shape(self)
-        arrays = _concrete(self.core_uts, self.surface_uts, self.depth_drop)
-        if arrays is None:
-            return
-        core, surface, drop = np.broadcast_arrays(*arrays)
-        weak = surface * (1.0 - drop) < core
-        check(
-            "Material.surface_uts",
-            surface,
-            lambda a: ~weak,
-            f"surface_uts (1 − depth_drop) ≥ core_uts (= {_first(core, a=weak)} MPa)",
-        )
+        check_material_strength(self.core_uts, self.surface_uts, self.depth_drop)
+
+
+MATERIAL_NAMES = ("Material.core_uts", "Material.surface_uts", "Material.depth_drop")
+
+
+def check_material_strength(
+    core_uts: ArrayLike,
+    surface_uts: ArrayLike,
+    depth_drop: ArrayLike,
+    names: tuple = MATERIAL_NAMES,
+) -> None:
+    """The hardened layer is no weaker than the core at its depth: σ_R,s (1 − Δ) ≥ σ_R,c [MPa],
+    for concrete values (traced ones are not checked). ``names`` name σ_R,c, σ_R,s and Δ in the
+    error (default: `Material`'s fields; the spec gives its keys)."""
+    arrays = _concrete(core_uts, surface_uts, depth_drop)
+    if arrays is None:
+        return
+    core, surface, drop = np.broadcast_arrays(*arrays)
+    weak = surface * (1.0 - drop) < core
+    fields = names == MATERIAL_NAMES
+    short = [n.removeprefix("Material.") for n in names] if fields else names
+    number = repr if fields else "{:g}".format  # a caller's keys: its numbers as a file's
+    check(
+        names[1],
+        surface,
+        lambda a: ~weak,
+        f"{short[1]} (1 − {short[2]}) ≥ {short[0]} (= {number(_first(core, a=weak))} MPa)",
+    )
 
 
 def _workbook_material(fatigue_ratio: float, safety: float) -> Material:
