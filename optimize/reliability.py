@@ -40,6 +40,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.scipy.special import log_ndtr, ndtr
 
+from tripodjax._checks import check_integer
 from tripodjax.optimize import uncertainty
 from tripodjax.optimize._compiled import call, latency_bound_jit
 from tripodjax.optimize.problem import (
@@ -69,6 +70,20 @@ DEFAULT_CHUNK = 2**15
 DEFAULT_CHUNK_KINEMATIC = 2**11
 SORM_FORMULAS = ("breitung", "hohenbichler_rackwitz", "tvedt")
 IS_BELOW = 1e-3  # method "all": importance sampling where the FORM probability is below this
+# Allowed ranges of the arguments (low, high), each checked in one line by `_check`: at most
+# 10⁹ draws (about 20 min of the Hertz and life chain at its measured 8.4·10⁵ samples/s); a
+# chunk of at most 2^20 samples (the Hertz and life chain holds about 430 bytes a sample:
+# 0.45 GB; a chain with the kinematics n_theta times more, keep it near the default 2^11);
+# a seed that jax.random.PRNGKey takes (an int64 ≥ 0).
+MAX_SAMPLES = 10**9
+MAX_CHUNK = 2**20
+MAX_SEED = 2**63 - 1
+ARGUMENT_RANGES = {
+    "samples": (2, MAX_SAMPLES),
+    "is_samples": (2, MAX_SAMPLES),
+    "chunk": (1, MAX_CHUNK),
+    "seed": (0, MAX_SEED),
+}
 
 
 def _value_and_gradient(structure, values, x, u):
@@ -358,14 +373,13 @@ def _check(spec, design, method, samples, is_samples, chunk, seed):
         )
     if method not in METHODS:
         raise ValueError(f"method = {method!r} is not allowed; allowed: {', '.join(METHODS)}")
-    for name, value, low in (
-        ("samples", samples, 2),
-        ("is_samples", is_samples, 2),
-        ("chunk", 1 if chunk is None else chunk, 1),
-        ("seed", seed, 0),
-    ):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-            raise ValueError(f"{name} = {value!r} is not allowed: an integer ≥ {low}")
+    given = {"samples": samples, "is_samples": is_samples, "chunk": chunk, "seed": seed}
+    for name, (low, high) in ARGUMENT_RANGES.items():
+        value = given[name]
+        if np.ndim(value) != 0:  # an array of integers is no count
+            raise TypeError(f"{name} = {value!r:.60} is not allowed; allowed: one integer")
+        if value is not None or name != "chunk":  # chunk None: the default
+            check_integer(name, value, low, high)
     if design is None:
         design = fixed_design(spec.values)
     return design
@@ -393,8 +407,10 @@ def reliability(
             ``is_samples`` draws), ``"all"`` (FORM, Monte Carlo, and importance sampling
             where the FORM probability is below 1e-3).
         samples, is_samples, seed, chunk: Monte Carlo draws, importance-sampling draws
-            per requirement, the seed of ``jax.random``, draws per compiled call (None:
-            2^15, or 2^11 when a requirement needs the kinematics).
+            per requirement (each 2 to 10⁹), the seed of ``jax.random`` (0 to 2⁶³ − 1), draws
+            per compiled call (1 to 2^20, bounding its memory: about 430 bytes a sample for
+            the Hertz and life chain, n_theta times more with the kinematics; None: 2^15, or
+            2^11 when a requirement needs the kinematics).
 
     Returns:
         ``{"method", "inputs": {key: description}, "requirements": [{"name",
@@ -501,7 +517,7 @@ def reliability(
                     continue  # the requirement does not depend on the uncertain numbers
                 shift = jnp.asarray(form["design_point"][j])
                 mean, se, _, _, failed, nonfinite = _sample(
-                    structure, values, x, is_samples, seed + 1 + j, chunk, shift
+                    structure, values, x, is_samples, (seed + 1 + j) % (MAX_SEED + 1), chunk, shift
                 )
                 row.update(
                     probability_is=float(mean[j]),

@@ -825,6 +825,13 @@ def _objective(table):
 
 
 CHANCE_PREFIXES = {"max_failure_probability_": "probability", "min_reliability_index_": "index"}
+# A chance constraint's target reliability index β_t from 0 to MAX_RELIABILITY_INDEX, one rule
+# for both forms: a probability P = Φ(−β_t) from Φ(−8) ≈ 6.2e-16 to 0.5.
+MAX_RELIABILITY_INDEX = 8.0
+CHANCE_RANGES = {
+    "index": (0.0, MAX_RELIABILITY_INDEX),
+    "probability": (0.5 * math.erfc(MAX_RELIABILITY_INDEX / math.sqrt(2.0)), 0.5),
+}
 
 
 def _chance(key, value):
@@ -837,11 +844,9 @@ def _chance(key, value):
                     f"unknown key constraints.{key}; allowed: {prefix}<q> with <q> life, static_capacity "
                     "or a quantity with a max_<q> / min_<q> constraint"
                 )
-            tab = {"constraints": {key: value}}
-            if kind == "probability":  # β = −Φ⁻¹(P) from 0 to 8
-                number = _number(tab, "constraints", key, 0.0, 0.5, low_open=True)
-            else:
-                number = _number(tab, "constraints", key, 0.0, 8.0)
+            number = _number(
+                {"constraints": {key: value}}, "constraints", key, *CHANCE_RANGES[kind]
+            )
             return kind, "life_km" if q == "life" else q, number
     return None
 

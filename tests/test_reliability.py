@@ -129,14 +129,27 @@ def test_a_quoted_dotted_key_is_the_nested_one():
         ("max_failure_probability_life = 1e-3", "needs uncertain numbers"),
         ("max_failure_probability_life = 0.7", "≤ 0.5"),
         ("min_reliability_index_life = -1", "≥ 0"),
+        # One rule for both forms: β_t ≤ 8, P ≥ Φ(−8) ≈ 6.2e-16 (1e-300 was β ≈ 37).
+        ("min_reliability_index_life = 8.5", "= 8.5 is not allowed: a finite number ≥ 0 and ≤ 8"),
+        ("max_failure_probability_life = 1e-300", "= 1e-300 is not allowed: .* ≥ 6.22096e-16 and"),
+        ("max_failure_probability_life = 6.2e-16", "≥ 6.22096e-16 and ≤ 0.5"),
         ("max_failure_probability_eccentricity = 1e-3", "no constraint"),
         ("max_failure_probability_colour = 1e-3", "unknown key constraints."),
     ],
 )
 def test_bad_chance_constraint(text, expected):
     unc = "" if "needs" in expected else TOLERANCES
-    with pytest.raises(optimize.SpecError, match=expected):
+    with pytest.raises(optimize.SpecError, match=expected) as error:
         optimize.parse_spec(unc + "[constraints]\n" + text)
+    assert "\n" not in str(error.value)
+
+
+def test_chance_targets_at_the_ends_of_their_one_range():
+    """β_t = 8 and its probability Φ(−8) are both allowed: the same target."""
+    p = optimize.spec.CHANCE_RANGES["probability"][0]
+    assert p == pytest.approx(stats.norm.sf(8.0), rel=1e-12)
+    for text in ("min_reliability_index_life = 8.0", f"max_failure_probability_life = {p!r}"):
+        optimize.parse_spec(TOLERANCES + "[constraints]\n" + text)
 
 
 def test_uncertain_numbers_are_traced_and_kinds_are_structure():
@@ -235,6 +248,34 @@ def test_reliability_errors():
         optimize.reliability(spec, method="sorm")
     with pytest.raises(ValueError, match="samples = 0"):
         optimize.reliability(spec, method="mc", samples=0)
+
+
+@pytest.mark.parametrize(
+    ("argument", "value", "error", "expected"),
+    [
+        (
+            "seed",
+            2**70,
+            ValueError,
+            "seed = 1180591620717411303424 .* 0 ≤ seed ≤ 9223372036854775807",
+        ),
+        ("seed", 2**63, ValueError, "0 ≤ seed ≤ 9223372036854775807"),
+        ("seed", -1, ValueError, "seed = -1"),
+        ("samples", 10**9 + 1, ValueError, "2 ≤ samples ≤ 1000000000"),
+        ("is_samples", 10**12, ValueError, "2 ≤ is_samples ≤ 1000000000"),
+        ("chunk", 2**20 + 1, ValueError, "1 ≤ chunk ≤ 1048576"),
+        ("chunk", 0, ValueError, "chunk = 0"),
+        ("chunk", 2.0, TypeError, "chunk = 2.0"),
+        ("samples", True, TypeError, "samples = True"),
+        ("seed", np.array([1, 2]), TypeError, "seed = array"),
+    ],
+)
+def test_reliability_arguments_have_ranges(argument, value, error, expected):
+    """Each count and the seed in one range, checked before anything compiles; one line."""
+    spec = optimize.parse_spec(TOLERANCES)
+    with pytest.raises(error, match=expected) as raised:
+        optimize.reliability(spec, method="mc", **{argument: value})
+    assert "\n" not in str(raised.value)
 
 
 def _life_margin_batch(spec):
