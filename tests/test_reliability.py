@@ -748,6 +748,65 @@ def test_each_chance_margin_is_its_requirements_lowest_margin_on_the_sphere():
     assert single == pytest.approx(margins["max_failure_probability_life"], abs=1e-12)
 
 
+def test_a_chance_margin_with_a_non_finite_point_on_its_sphere_is_undefined():
+    """A point of the PMA sphere whose margin is not finite leaves the minimum undefined: the
+    chance margin is NaN with a nonfinite code, never the lowest finite point's nor the mean's
+    (the nominal margin, which the solve took as the chance constraint's, 'converged').
+    P_d lognormal, CoV 1e12 (σ_ln 7.4): P_d is 1.3e-9 MPa at the mean (a finite life margin,
+    −248), 2e-35 MPa at u = −8 (the life overflows: no finite margin) and 1e17 MPa at u = +8.
+    One program, the cases vmapped over the traced CoV and β_t: CoV 1e12 at β_t 8 (the sphere
+    {−8, +8} half undefined) and at β_t 0 (the sphere is the mean: finite), CoV 0.05 at β_t 5
+    (finite everywhere: the lower point, below the mean's margin)."""
+    from tripodjax.optimize import problem
+    from tripodjax.results import RESULTS
+
+    spec = optimize.parse_spec(
+        '[uncertainty]\nhertz.P_d = { distribution = "lognormal", cov = 1e12 }\n'
+        "[constraints]\nmin_reliability_index_life = 8.0\n"
+    )
+    cov = jnp.asarray([1e12, 1e12, 0.05])
+    beta = jnp.asarray([8.0, 0.0, 5.0])
+    with jax.enable_x64(True):
+        values, x = problem.design_values(spec, {"R": 25.55, "d_roller": 43.5})
+        values = jax.tree_util.tree_map(jnp.asarray, values)
+
+        def case(c, b):
+            v = {
+                **values,
+                "uncertainty": {"hertz.P_d": {"spread": c}},
+                "constraints": {**values["constraints"], "min_reliability_index_life": b},
+            }
+            (margin,), code = problem.chance_margins(spec.structure, v, jnp.asarray(x))
+            at_mean = problem.limit_state(
+                problem.requirement_structure(spec.structure), v, jnp.asarray(x), jnp.zeros(1)
+            )[0][1]
+            return margin, code, at_mean
+
+        margin, code, at_mean = map(np.asarray, jax.jit(jax.vmap(case))(cov, beta))
+    assert np.all(np.isfinite(at_mean))  # the mean's (nominal) life margin is finite
+    assert np.isnan(margin[0]) and code[0, 0] == RESULTS.nonfinite
+    assert margin[1] == at_mean[1] and np.all(code[1] == RESULTS.successful)
+    assert np.isfinite(margin[2]) and margin[2] < at_mean[2]
+    assert np.all(code[2] == RESULTS.successful)
+
+
+def test_a_non_finite_chance_margin_is_named_in_the_verdict():
+    """The command's verdict names the chance constraint whose margin is not finite."""
+    import types
+
+    from tripodjax.optimize.cli import EXIT_NOT_CONVERGED, _verdict
+
+    result = types.SimpleNamespace(
+        result="nonfinite",
+        feasible=False,
+        constraints={"life": {"margin": 0.2}, "min_reliability_index_life": {"margin": math.nan}},
+    )
+    message, status = _verdict(result)
+    assert status == EXIT_NOT_CONVERGED and "\n" not in message
+    assert message.startswith("not converged: the margin of min_reliability_index_life is not")
+    assert "inverse-FORM" in message
+
+
 def test_chance_margin_derivatives_are_those_at_the_point_held_fixed():
     """The chance margin's derivatives come from the PMA search's own linearisation (along x,
     as the solve takes them) and from a forward pass at the point (along a spec number, and the
