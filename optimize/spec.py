@@ -11,6 +11,7 @@ solve). Any problem in the file raises [`SpecError`][tripodjax.optimize.SpecErro
 with one line naming the key, the value and what is allowed.
 """
 
+import contextvars
 import copy
 import dataclasses
 import json
@@ -440,6 +441,12 @@ class SpecError(ValueError):
     """A problem in a design specification: the message names the key and what is allowed."""
 
 
+# The range each number was checked against by the check under way, "section.key" (the file's
+# key) → (low, high, low open, high open, unit): `_number` records the rule it applies, so an
+# [uncertainty] entry's distribution is held to its number's own rule (`_number_domain`).
+_CHECKED_RANGES: contextvars.ContextVar[dict] = contextvars.ContextVar("checked_ranges")
+
+
 @dataclasses.dataclass(frozen=True)
 class Structure:
     """The static part of a spec: what is free, which terms and constraints exist, the sizes.
@@ -657,6 +664,9 @@ def _number(table, section, key, low=None, high=None, *, low_open=False, high_op
     where = f"{section}.{key}"
     value = table[section][key]
     allowed = _range_text(low, high, low_open, unit, high_open)
+    checked = _CHECKED_RANGES.get(None)
+    if checked is not None:
+        checked[where] = (low, high, low_open, high_open, unit)
     return _in_range(where, _real(where, value, allowed), low, high, low_open, unit, high_open)
 
 
@@ -931,6 +941,11 @@ def _no_halfshaft(free, terms, constraints):
         )
 
 
+def _unit_suffix(unit):
+    """A unit as a message writes it after a number: " mm", "°", nothing for "–"."""
+    return "°" if unit == "deg" else ("" if unit == "–" else f" {unit}")
+
+
 def _shaft_bound(key, names):
     """(low, high, low open, unit) of the values of a [bounds] key naming a [shaft] entry."""
     entry = shaft_variable(key)
@@ -988,7 +1003,7 @@ def _bounds(table, fixed, shaft_lists, shaft_names):
             )
         if key in VARIABLES:
             _, _, unit, (low, high, low_open) = VARIABLES[key]
-            unit = "°" if unit == "deg" else ("" if unit == "–" else f" {unit}")
+            unit = _unit_suffix(unit)
         else:
             low, high, low_open, unit = _shaft_bound(key, shaft_names)
         if isinstance(value, str) and value == "fixed":
@@ -1175,6 +1190,14 @@ def _sources(given, base):
 
 def _check(table):
     """Check a merged table; returns the Spec."""
+    token = _CHECKED_RANGES.set({})
+    try:
+        return _check_table(table)
+    finally:
+        _CHECKED_RANGES.reset(token)
+
+
+def _check_table(table):
     v = {}
     fixed = {
         "R": _number(table, "design", "R", 0.0, low_open=True, unit=" mm"),
@@ -1473,7 +1496,37 @@ def _uncertainty(table, values, free):
         raise SpecError("uncertainty must be a table")
     numbers = jax.tree_util.tree_map(np.asarray, values)
     numbers["bounds"] = {k: np.asarray(b) for k, b in values["bounds"].items()}
-    return uncertainty.parse(section, numbers, VARIABLES, free)
+    return uncertainty.parse(section, numbers, VARIABLES, free, _number_domain)
+
+
+def _number_domain(section, key, variable):
+    """The allowed values of spec number ``values[section][key]``, as the spec checks them: a
+    design variable's domain (``VARIABLES``), any other number's the rule `_number` applied to
+    it in the check under way; None where no rule bounds it. An `uncertainty.Domain`."""
+    from tripodjax.optimize.uncertainty import Domain
+
+    if variable is not None:
+        _, _, unit, (low, high, low_open) = VARIABLES[variable]
+        name, high_open, unit = variable, False, _unit_suffix(unit)
+        degrees = variable == "gamma0_deg"
+    else:
+        file_key, units = _SPEC_UNITS.get((section, key), (key, None))
+        name = f"{section}.{file_key}"
+        if name not in _CHECKED_RANGES.get({}):
+            return None
+        low, high, low_open, high_open, unit = _CHECKED_RANGES.get({})[name]
+        degrees = units == "deg"
+    if low is None and high is None:
+        return None
+    scale = math.pi / 180.0 if degrees else 1.0
+    return Domain(
+        low=None if low is None else low * scale,
+        high=None if high is None else high * scale,
+        low_open=low_open,
+        high_open=high_open,
+        name=name,
+        allowed=_range_text(low, high, low_open, unit, high_open),
+    )
 
 
 def parse_spec(text: str, source: str = "spec", base: str | os.PathLike | None = None) -> Spec:

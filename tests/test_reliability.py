@@ -82,6 +82,64 @@ def row(result, name):
             '"hertz.P_d" = { distribution = "normal", cov = 0.05 }',
             ("uncertainty.hertz.P_d", "twice"),
         ),
+        # A distribution's values within the number's own rule (the spec's check of that key).
+        (
+            'hertz.P_d = { distribution = "uniform", low = -2000.0, high = 2000.0 }',
+            ("uncertainty.hertz.P_d.low = -2000.0 is not allowed: hertz.P_d takes", "> 0 MPa"),
+        ),
+        (
+            'vehicle.mass_kg = { distribution = "uniform", low = -100.0, high = 2000.0 }',
+            ("uncertainty.vehicle.mass_kg.low = -100.0", "vehicle.mass_kg takes", "> 0 kg"),
+        ),
+        (
+            'outboard.pressure_angle_deg = { distribution = "uniform", low = 10.0, high = 100.0 }',
+            ("uncertainty.outboard.pressure_angle_deg.high = 100.0", "> 0° and < 90°"),
+        ),
+        (
+            'loads.shock_factor = { distribution = "uniform", low = 0.0, high = 2.0 }',
+            ("uncertainty.loads.shock_factor.low = 0.0", "loads.shock_factor takes", "> 0"),
+        ),
+        (
+            'hertz.P_d = { distribution = "normal", cov = 0.4, low = -5.0 }',
+            ("uncertainty.hertz.P_d.low = -5.0", "> 0 MPa"),
+        ),
+        (
+            'conformity = { distribution = "normal", sd = 0.01, low = 1.0 }',
+            ("uncertainty.conformity.low = 1.0", "≥ 1.0005"),
+        ),
+        (
+            'layout.gamma0_deg = { distribution = "normal", sd = 3.0, high = 50.0 }',
+            ("uncertainty.layout.gamma0_deg.high = 50.0", "≤ 45°"),
+        ),
+        (
+            'R = { distribution = "uniform", half_width = 16.0 }',  # R's bounds [15, 40] mm
+            ("uncertainty.R.half_width = 16.0", "around the bounds: -1", "> 0 mm"),
+        ),
+        (
+            'conformity = { distribution = "lognormal", cov = 0.01 }',
+            ("uncertainty.conformity.distribution = 'lognormal'", "≥ 1.0005"),
+        ),
+        (
+            'vehicle.front_share = { distribution = "lognormal", cov = 0.1 }',
+            ("uncertainty.vehicle.front_share.distribution", "≤ 1"),
+        ),
+        # A spread whose variance overflows.
+        (
+            'hertz.P_d = { distribution = "normal", sd = 1e300 }',
+            ("hertz.P_d.sd = 1e+300", "≤ 1.341e+154"),
+        ),
+        (
+            'hertz.P_d = { distribution = "normal", cov = 1e300 }',
+            ("hertz.P_d.cov = 1e+300", "≤ 9.954e+150"),
+        ),
+        (
+            'hertz.P_d = { distribution = "lognormal", cov = 1e300 }',
+            ("hertz.P_d.cov = 1e+300", "≤ 1.341e+154"),
+        ),
+        (
+            'loads.gaf_torque = { distribution = "normal", cov = 0.1 }\n[loads]\ngaf_torque = 0.0',
+            ("uncertainty.loads.gaf_torque.cov = 0.1", "give sd"),
+        ),
     ],
 )
 def test_bad_uncertainty_is_one_line_naming_key_and_value(text, names):
@@ -189,7 +247,10 @@ def test_distributions_against_scipy():
     lognormal = stats.lognorm(s, scale=1347.0 * math.exp(-0.5 * s * s))
     np.testing.assert_allclose(out[2:5, 1], lognormal.ppf(p[2:5]), rtol=1e-12)
     np.testing.assert_allclose(out[:, 2], stats.uniform(1.002, 0.006).ppf(p), rtol=1e-14)
-    np.testing.assert_allclose(out[:, 3], 1154.0 * (1 + 0.1 * u), rtol=1e-14)
+    # M_max > 0: its normal is truncated at 0 (10 sd below the mean: seen at u = −30 alone,
+    # which gave M_max = −2308 N·m before).
+    np.testing.assert_allclose(out[1:, 3], 1154.0 * (1 + 0.1 * u[1:]), rtol=1e-14)
+    assert out[0, 3] == 0.0  # the bound: Φ(−30) is below the cut mass Φ(−10)
     np.testing.assert_allclose(
         out[:, 4], math.radians(20.0) + math.radians(2.0) * (2 * p - 1), rtol=1e-14
     )
@@ -211,6 +272,37 @@ def test_a_normal_design_variable_is_truncated_at_its_physical_bound():
     np.testing.assert_allclose(
         out[60:81, 0], truncated.ppf(stats.norm.cdf(u[60:81, 0])), rtol=1e-12
     )
+
+
+def test_a_normal_on_any_bounded_number_is_truncated_at_its_bound():
+    """The spec's rule for the number bounds a normal as a design variable's does: P_d > 0
+    (CoV 0.4: 0.6 % of the plain normal below 0), front_share in [0, 1] (both sides); an
+    unbounded number (forces.speed_rpm) stays a plain normal."""
+    spec = optimize.parse_spec(
+        "[uncertainty]\n"
+        'hertz.P_d = { distribution = "normal", cov = 0.4 }\n'
+        'vehicle.front_share = { distribution = "normal", sd = 0.3 }\n'
+        'forces.speed_rpm = { distribution = "normal", cov = 0.1 }\n'
+    )
+    p_d, share, speed = spec.structure.uncertainty
+    assert (p_d.truncate_low, p_d.truncate_high) == (True, False)
+    assert (share.truncate_low, share.truncate_high) == (True, True)
+    assert not (speed.truncate_low or speed.truncate_high)
+    numbers = spec.values["uncertainty"]
+    assert float(numbers["hertz.P_d"]["low"]) == 0.0
+    assert float(numbers["vehicle.front_share"]["high"]) == 1.0
+    u = np.linspace(-35.0, 35.0, 141)
+    means = [1347.0, float(spec.values["vehicle"]["front_share"]), 3000.0]
+    with jax.enable_x64(True):
+        out = np.asarray(
+            uncertainty.realize(spec.structure.uncertainty, numbers, means, np.stack([u] * 3, -1))
+        )
+    assert np.all(out[:, 0] >= 0.0) and np.all(np.diff(out[:, 0]) >= 0)
+    assert np.all((out[:, 1] >= 0.0) & (out[:, 1] <= 1.0))
+    truncated = stats.truncnorm(-1 / 0.4, np.inf, loc=1347.0, scale=0.4 * 1347.0)
+    middle = slice(60, 81)  # |u| ≤ 5
+    np.testing.assert_allclose(out[middle, 0], truncated.ppf(stats.norm.cdf(u[middle])), rtol=1e-10)
+    np.testing.assert_allclose(out[:, 2], 3000.0 * (1 + 0.1 * u), rtol=1e-14)
 
 
 def test_correlation_is_that_of_the_underlying_normals():
@@ -510,15 +602,51 @@ def _margin_at_mean(spec):
 
 
 def test_non_finite_samples_count_as_misses():
-    """Samples where the model gives no finite margin are counted, never dropped."""
-    spec = optimize.parse_spec(
-        '[uncertainty]\nhertz.P_d = { distribution = "normal", sd = 1000.0 }\n'
-    )  # P_d < 0 in about 9 % of the samples: no finite life
+    """Samples where the model gives no finite margin are counted, never dropped, and each is a
+    miss (an infinite margin too). P_d lognormal, CoV 1e30: P_d is 1e-27 MPa at the median,
+    and below about u = −1 the life overflows (its margin is +inf, result nonfinite); the
+    fraction of samples with no finite margin is Φ(u*), u* the edge of the finite margins found
+    on a grid of u through the limit state, and the life is missed below u ≈ 5.8. (A normal on P_d, which gave P_d < 0 here before,
+    is now truncated at P_d's bound.)"""
+    text = '[uncertainty]\nhertz.P_d = { distribution = "lognormal", cov = 1e30 }\n'
+    spec = optimize.parse_spec(text)
+    structure = requirement_structure(spec.structure)
+    values, x = optimize.problem.design_values(spec, optimize.problem.fixed_design(spec.values))
+    grid = np.linspace(-4.0, 8.0, 12001)
+    with jax.enable_x64(True):
+        margins = jax.jit(
+            jax.vmap(
+                lambda u: optimize.problem.limit_state(structure, values, jnp.asarray(x), u)[0]
+            )
+        )(jnp.asarray(grid[:, None]))
+    finite = np.all(np.isfinite(np.asarray(margins)), axis=1)
+    edge = grid[np.argmax(finite)]  # finite from here up, none below
+    assert 0.05 < stats.norm.cdf(edge) < 0.5 and np.all(finite[grid >= edge])
+    life = np.asarray(margins)[:, 1]
+    met = grid[np.argmax(finite & (life >= 0))]  # the life is met from here up (u ≈ 5.8)
+    assert np.all(life[finite & (grid < met)] < 0)
     result = optimize.reliability(spec, None, "mc", samples=20_000, chunk=4096)
     status = result["status"]
-    negative = stats.norm.cdf(-1347.0 / 1000.0)
-    assert status["mc_nonfinite_samples"] / 20_000 == pytest.approx(negative, abs=0.01)
-    assert row(result, "life")["probability_mc"] >= status["mc_nonfinite_samples"] / 20_000
+    assert status["mc_nonfinite_samples"] / 20_000 == pytest.approx(stats.norm.cdf(edge), abs=0.01)
+    # Every sample below u ≈ 5.8 misses: the non-finite ones too (they counted as met before).
+    assert row(result, "life")["probability_mc"] == pytest.approx(stats.norm.cdf(met), abs=1e-3)
+
+
+def test_form_without_a_finite_margin_at_the_mean_gives_no_probability():
+    """A margin (or gradient) that is not finite at the mean of the inputs is no requirement
+    independent of them: FORM has not converged, β and P are None (never 0 or 1), the note says
+    why (before: β = +∞, P = 0, converged). P_d lognormal, CoV 1e40: P_d is 1e-37 MPa at the
+    median, where the life overflows. One FORM program with the importance-sampling test's."""
+    spec = optimize.parse_spec(
+        '[uncertainty]\nhertz.P_d = { distribution = "lognormal", cov = 1e40 }\n'
+    )
+    result = optimize.reliability(spec, None, "form")
+    life = row(result, "life")
+    assert life["beta_form"] is None and life["probability_form"] is None
+    assert life["probability_sorm"] is None and not life["form_converged"]
+    assert life["form_result"] == "nonfinite" and "not finite at the mean" in life["form_note"]
+    assert result["status"]["form_converged"] is False
+    assert result["system_bounds_form"][1] is None  # an unknown P_i: no upper bound
 
 
 def test_chance_constraint_design_meets_its_probability_and_no_more():
