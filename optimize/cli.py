@@ -19,6 +19,7 @@ report and leaves on a signal only when no staged file remains in ``--out``.
 
 import contextlib
 import gc
+import math
 import os
 import signal
 import sys
@@ -441,10 +442,25 @@ def _contents(args, given, command_line):
 def _verdict(result):
     """(message, exit status) of a result."""
     if result.result == "nonfinite":
+        from tripodjax.optimize.spec import CHANCE_PREFIXES
+
+        names = [n for n, c in result.constraints.items() if not math.isfinite(c["margin"])]
+        chance = [n for n in names if n.startswith(tuple(CHANCE_PREFIXES))]
+        which = (
+            f"the margin of {', '.join(names[:3])}"
+            if names
+            else "the objective or a constraint margin"
+        )
+        why = (
+            f"{chance[0]}'s requirement has no finite margin at a point of its inverse-FORM "
+            "search (|u| = β_t): an uncertain number's distribution reaches values where the "
+            "model overflows; narrow that distribution or lower the target"
+            if chance
+            else "some numbers of the spec overflow together, e.g. a weight w_<q> over its "
+            "reference <q>_ref, or a limit or load near 0"
+        )
         return (
-            "not converged: the objective or a constraint margin is not finite at the design "
-            "(result nonfinite): some numbers of the spec overflow together, e.g. a weight "
-            "w_<q> over its reference <q>_ref, or a limit or load near 0",
+            f"not converged: {which} is not finite at the design (result nonfinite): {why}",
             EXIT_NOT_CONVERGED,
         )
     if not result.feasible:

@@ -341,8 +341,11 @@ def chance_margins(structure, values, x):
     hybrid-mean-value steps from the mean (Youn, Choi & Park 2003): the advanced-mean-value
     step u ← β_t n(u), n = −∇g/|∇g|, while g is convex along the iterates, the conjugate step
     u ← β_t (n_k + n_{k−1} + n_{k−2})/|…| where it is concave (AMV alone cycles there); the
-    lowest margin seen is kept. The point is held fixed in the derivatives: at the minimiser
-    ∂g/∂x is the margin's total derivative (``_pma_margin``). Returns (margins, worst code).
+    lowest margin seen is kept. A point of the sphere without a finite margin (a tail of an
+    input where the model overflows) leaves the minimum undefined: that margin is NaN with the
+    code ``nonfinite``, never the lowest finite point's or the mean's. The point is held fixed
+    in the derivatives: at the minimiser ∂g/∂x is the margin's total derivative
+    (``_pma_margin``). Returns (margins, worst code).
     """
     rs = chance_target_structure(structure)
     names = constraint_names(rs)
@@ -392,27 +395,37 @@ def _pma_search(rs, values, x, j, beta):
             lambda t: jax.jvp(g, (w,), (t,), has_aux=True), out_axes=(None, 0, None)
         )(basis)
         grad = slopes[:n]
-        # The lowest finite margin on the sphere; the mean (k = 0) is not on it and is the
-        # answer only where no point of the sphere gives a finite margin.
-        better = (value < s["best"]) & jnp.isfinite(value) & (k >= 1)
+        # The lowest margin on the sphere (the mean, k = 0, is not on it). A point of the
+        # sphere without a finite margin (an input's tail where the model overflows, or the
+        # mean's own margin not finite, which sends every step to NaN) leaves the minimum
+        # undefined: neither the lowest finite point nor the mean stands in for it.
+        better = (value < s["best"]) & (k >= 1)
         keep = better | (k == 0)
         answer = (value, code, slopes[n:], s["u"])
         answer = jax.tree_util.tree_map(lambda a, b: jnp.where(keep, a, b), answer, s["answer"])
         best = jnp.where(better, value, s["best"])
+        undefined = s["undefined"] | ((k >= 1) & ~jnp.isfinite(value))
         norm = jnp.linalg.norm(grad)
         normal = -grad / jnp.where(norm > 0, norm, 1.0)
         zeta = jnp.dot(normal - s["n1"], s["n1"] - s["n2"])
         conjugate = s["n1"] + s["n2"] + normal
         conjugate = conjugate / jnp.maximum(jnp.linalg.norm(conjugate), 1e-300)
         direction = jnp.where((k >= 2) & (zeta < 0), conjugate, normal)
-        return dict(u=beta * direction, n1=normal, n2=s["n1"], best=best, answer=answer)
+        return dict(
+            u=beta * direction, n1=normal, n2=s["n1"], best=best, answer=answer, undefined=undefined
+        )
 
     zero = jnp.zeros(n, x.dtype)
     inf = jnp.asarray(jnp.inf, x.dtype)
     # (margin, code, x-gradient, u): the code is quantities' pair (kinematics and forces, Hertz).
     answer = (inf, jnp.zeros(2, jnp.int32), jnp.zeros_like(x), zero)
-    init = dict(u=zero, n1=zero, n2=zero, best=inf, answer=answer)
-    return jax.lax.fori_loop(0, PMA_STEPS + 1, step, init)["answer"]  # the last pass only scores
+    init = dict(u=zero, n1=zero, n2=zero, best=inf, answer=answer, undefined=jnp.bool_(False))
+    out = jax.lax.fori_loop(0, PMA_STEPS + 1, step, init)  # the last pass only scores
+    margin, code, slope, u = out["answer"]
+    undefined = out["undefined"]  # NaN and a nonfinite code: the solve says so, names the key
+    code = code.at[0].max(jnp.where(undefined, RESULTS.nonfinite, RESULTS.successful))
+    nan = jnp.asarray(jnp.nan, x.dtype)
+    return jnp.where(undefined, nan, margin), code, jnp.where(undefined, nan, slope), u
 
 
 def _instantiate(tangent):

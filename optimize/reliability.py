@@ -40,6 +40,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.scipy.special import log_ndtr, ndtr
 
+from tripodjax._checks import check_integer
 from tripodjax.optimize import uncertainty
 from tripodjax.optimize._compiled import call, latency_bound_jit
 from tripodjax.optimize.problem import (
@@ -69,6 +70,20 @@ DEFAULT_CHUNK = 2**15
 DEFAULT_CHUNK_KINEMATIC = 2**11
 SORM_FORMULAS = ("breitung", "hohenbichler_rackwitz", "tvedt")
 IS_BELOW = 1e-3  # method "all": importance sampling where the FORM probability is below this
+# Allowed ranges of the arguments (low, high), each checked in one line by `_check`: at most
+# 10⁹ draws (about 20 min of the Hertz and life chain at its measured 8.4·10⁵ samples/s); a
+# chunk of at most 2^20 samples (the Hertz and life chain holds about 430 bytes a sample:
+# 0.45 GB; a chain with the kinematics n_theta times more, keep it near the default 2^11);
+# a seed that jax.random.PRNGKey takes (an int64 ≥ 0).
+MAX_SAMPLES = 10**9
+MAX_CHUNK = 2**20
+MAX_SEED = 2**63 - 1
+ARGUMENT_RANGES = {
+    "samples": (2, MAX_SAMPLES),
+    "is_samples": (2, MAX_SAMPLES),
+    "chunk": (1, MAX_CHUNK),
+    "seed": (0, MAX_SEED),
+}
 
 
 def _value_and_gradient(structure, values, x, u):
@@ -131,6 +146,7 @@ def _hlrf(structure, values, x, j):
         evaluations=jnp.int32(0),
         converged=jnp.bool_(False),
         flat=jnp.bool_(False),
+        nonfinite=jnp.bool_(False),
         hessian=jnp.zeros((n, n), dtype),
         done=jnp.bool_(False),
     )
@@ -155,13 +171,16 @@ def _hlrf(structure, values, x, j):
         d, c = direction(y, g, grad)
         slope = jnp.minimum(jnp.dot(y + c * jnp.sign(g) * grad, d), 0.0)  # ∇merit · d
         small = jnp.linalg.norm(d) <= TOLERANCE * (1.0 + jnp.linalg.norm(y))
-        flat = s["start"] & ~(jnp.dot(grad, grad) > 0)  # g does not depend on u
-        converged = s["converged"] | (accepted & small) | flat
+        # At the mean: a margin or gradient that is not finite leaves FORM without a start (not
+        # converged, β NaN); a finite zero gradient: g does not depend on u (β = ±∞).
+        nonfinite = s["start"] & ~(jnp.isfinite(g) & jnp.all(jnp.isfinite(grad)))
+        flat = s["start"] & ~nonfinite & (jnp.dot(grad, grad) == 0)
+        converged = (s["converged"] | (accepted & small) | flat) & ~nonfinite
         k = s["k"] + (accepted & ~s["start"]).astype(jnp.int32)
         evaluations = s["evaluations"] + 1
         stalled = s["search"] & ~accepted & (s["step"] < 1e-12)
         over = (k >= MAX_ITERATIONS) | (evaluations >= MAX_EVALUATIONS)
-        search_over = s["search"] & (converged | stalled | over)
+        search_over = s["search"] & (converged | stalled | over | nonfinite)
 
         def keep(new, old):
             return jnp.where(accepted, new, old)
@@ -188,15 +207,17 @@ def _hlrf(structure, values, x, j):
             evaluations=evaluations,
             converged=converged,
             flat=s["flat"] | flat,
+            nonfinite=s["nonfinite"] | nonfinite,
             hessian=hessian,
-            done=(search_over & flat) | (~s["search"] & (i >= 2 * n)),
+            done=(search_over & (flat | nonfinite)) | (~s["search"] & (i >= 2 * n)),
         )
 
     s = jax.lax.while_loop(lambda s: ~s["done"], iterate, state)
-    u, grad, flat = s["u"], s["grad"], s["flat"]
+    u, grad, flat, nonfinite = s["u"], s["grad"], s["flat"], s["nonfinite"]
     norm = jnp.linalg.norm(grad)
     sign = jnp.where(s["g0"] >= 0, 1.0, -1.0)
     beta = jnp.where(flat, sign * jnp.inf, sign * jnp.linalg.norm(u))
+    beta = jnp.where(nonfinite, jnp.nan, beta)  # never a probability of 0 or 1
     # SORM: the curvatures are the eigenvalues of the tangential Hessian / |∇g|.
     hessian = 0.5 * (s["hessian"] + s["hessian"].T)
     normal = grad / jnp.where(norm > 0, norm, 1.0)
@@ -218,13 +239,14 @@ def _hlrf(structure, values, x, j):
         probability_sorm_hohenbichler_rackwitz=sorm["hohenbichler_rackwitz"],
         probability_sorm_tvedt=sorm["tvedt"],
         design_point=u,
-        importance=jnp.where(flat, 0.0, importance),
+        importance=jnp.where(flat, 0.0, jnp.where(nonfinite, jnp.nan, importance)),
         converged=s["converged"],
+        nonfinite=nonfinite,
         iterations=s["k"],
         evaluations=s["evaluations"],
         g_at_point=s["g"],
         step_left=jnp.linalg.norm(s["d"]),
-        code=s["code"],
+        code=jnp.maximum(s["code"], jnp.where(nonfinite, RESULTS.nonfinite, RESULTS.successful)),
         curvatures=kappa,
     )
 
@@ -291,7 +313,8 @@ def _sample_chunk(static, values, x, key, index, shift, valid):
     weight = jnp.exp(-u @ shift + 0.5 * jnp.dot(shift, shift))  # φ(u)/φ(u − shift)
     margins, codes = jax.vmap(lambda v: limit_state(structure, values, x, v))(u)
     live = jnp.arange(size) < valid
-    miss = ~(margins >= 0) & live[:, None]  # a NaN margin is a miss
+    # A margin that is not finite (NaN, or an infinity the model overflowed to) is a miss.
+    miss = ~(jnp.isfinite(margins) & (margins >= 0)) & live[:, None]
     wm = jnp.where(miss, weight[:, None], 0.0)
     system = jnp.where(jnp.any(miss, axis=1), weight, 0.0)
     failed = jnp.sum((jnp.max(codes, axis=1) != RESULTS.successful) & live)
@@ -358,14 +381,13 @@ def _check(spec, design, method, samples, is_samples, chunk, seed):
         )
     if method not in METHODS:
         raise ValueError(f"method = {method!r} is not allowed; allowed: {', '.join(METHODS)}")
-    for name, value, low in (
-        ("samples", samples, 2),
-        ("is_samples", is_samples, 2),
-        ("chunk", 1 if chunk is None else chunk, 1),
-        ("seed", seed, 0),
-    ):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-            raise ValueError(f"{name} = {value!r} is not allowed: an integer ≥ {low}")
+    given = {"samples": samples, "is_samples": is_samples, "chunk": chunk, "seed": seed}
+    for name, (low, high) in ARGUMENT_RANGES.items():
+        value = given[name]
+        if np.ndim(value) != 0:  # an array of integers is no count
+            raise TypeError(f"{name} = {value!r:.60} is not allowed; allowed: one integer")
+        if value is not None or name != "chunk":  # chunk None: the default
+            check_integer(name, value, low, high)
     if design is None:
         design = fixed_design(spec.values)
     return design
@@ -393,8 +415,10 @@ def reliability(
             ``is_samples`` draws), ``"all"`` (FORM, Monte Carlo, and importance sampling
             where the FORM probability is below 1e-3).
         samples, is_samples, seed, chunk: Monte Carlo draws, importance-sampling draws
-            per requirement, the seed of ``jax.random``, draws per compiled call (None:
-            2^15, or 2^11 when a requirement needs the kinematics).
+            per requirement (each 2 to 10⁹), the seed of ``jax.random`` (0 to 2⁶³ − 1), draws
+            per compiled call (1 to 2^20, bounding its memory: about 430 bytes a sample for
+            the Hertz and life chain, n_theta times more with the kinematics; None: 2^15, or
+            2^11 when a requirement needs the kinematics).
 
     Returns:
         ``{"method", "inputs": {key: description}, "requirements": [{"name",
@@ -448,7 +472,7 @@ def reliability(
             for j, row in enumerate(out["requirements"]):
                 row.update(
                     beta_form=_float(form["beta"][j]),
-                    probability_form=float(form["probability"][j]),
+                    probability_form=_float(form["probability"][j]),
                     probability_sorm=_float(form["probability_sorm"][j]),
                     **{
                         f"probability_sorm_{formula}": _float(
@@ -462,7 +486,12 @@ def reliability(
                     form_iterations=int(form["iterations"][j]),
                     form_result=RESULTS(int(form["code"][j])).name,
                 )
-                if not row["form_converged"]:
+                if form["nonfinite"][j]:
+                    row["form_note"] = (
+                        "the margin or its gradient is not finite at the mean of the inputs "
+                        f"(result {row['form_result']}): FORM has no start, no probability"
+                    )
+                elif not row["form_converged"]:
                     row["form_note"] = (
                         f"HL-RF stopped after {int(form['iterations'][j])} steps without reaching "
                         f"the limit state (margin {float(form['g_at_point'][j]):.3g} at its last "
@@ -470,7 +499,11 @@ def reliability(
                         "the FORM figures are not an estimate, the Monte Carlo one is"
                     )
             p = np.asarray(form["probability"], float)
-            out["system_bounds_form"] = [float(np.max(p)), float(min(1.0, np.sum(p)))]
+            known = p[np.isfinite(p)]  # an unknown P_i leaves the upper bound unknown
+            out["system_bounds_form"] = [
+                float(np.max(known)) if known.size else None,
+                float(min(1.0, np.sum(p))) if known.size == p.size else None,
+            ]
         if method in ("mc", "all"):
             mean, se, system, system_se, failed, nonfinite = _sample(
                 structure, values, x, samples, seed, chunk, jnp.asarray(zero)
@@ -483,7 +516,7 @@ def reliability(
                     mc_interval_95=wilson(float(mean[j]), samples),
                     samples=samples,
                 )
-                if form is not None:  # SORM where it applies, else FORM
+                if form is not None and row["probability_form"] is not None:  # SORM or FORM
                     lo, hi = row["mc_interval_95"]
                     basis = "sorm" if row["probability_sorm"] is not None else "form"
                     row["agree"] = bool(lo <= row[f"probability_{basis}"] <= hi)
@@ -495,13 +528,13 @@ def reliability(
         if form is not None and method in ("is", "all"):
             status.update(is_failed_solves=0, is_nonfinite_samples=0)
             for j, row in enumerate(out["requirements"]):
+                if not np.isfinite(form["beta"][j]):
+                    continue  # no design point: g does not depend on u, or no FORM
                 if method == "all" and not row["probability_form"] < IS_BELOW:
                     continue
-                if not np.isfinite(form["beta"][j]):
-                    continue  # the requirement does not depend on the uncertain numbers
                 shift = jnp.asarray(form["design_point"][j])
                 mean, se, _, _, failed, nonfinite = _sample(
-                    structure, values, x, is_samples, seed + 1 + j, chunk, shift
+                    structure, values, x, is_samples, (seed + 1 + j) % (MAX_SEED + 1), chunk, shift
                 )
                 row.update(
                     probability_is=float(mean[j]),

@@ -626,7 +626,7 @@ def figure_importance(reliability):
     ax = fig.subplots()
     left = np.zeros(len(rows))
     for i, key in enumerate(inputs):
-        share = np.array([r["importance"][key] for r in rows])
+        share = np.nan_to_num([r["importance"][key] for r in rows])  # NaN: no FORM estimate
         ax.barh(range(len(rows)), share, left=left, color=f"C{i % 10}", label=label(key))
         left += share
     labels = []
@@ -634,7 +634,8 @@ def figure_importance(reliability):
         beta, p = r.get("beta_form"), r.get("probability_form")
         beta = "β = ∞" if beta is None else f"β = {beta:.2f}"
         note = "" if r.get("form_converged") else ", FORM not converged"
-        labels.append(f"{label(r['name'])}\n{beta}, P = {p:.2g}{note}")
+        estimate = "FORM: no estimate (margin not finite)" if p is None else f"{beta}, P = {p:.2g}"
+        labels.append(f"{label(r['name'])}\n{estimate}{note if p is not None else ''}")
     ax.set_yticks(range(len(rows)), labels, fontsize=8)
     ax.set(
         xlim=(0, 1),

@@ -994,6 +994,13 @@ def _objective(table):
 
 
 CHANCE_PREFIXES = {"max_failure_probability_": "probability", "min_reliability_index_": "index"}
+# A chance constraint's target reliability index β_t from 0 to MAX_RELIABILITY_INDEX, one rule
+# for both forms: a probability P = Φ(−β_t) from Φ(−8) ≈ 6.2e-16 to 0.5.
+MAX_RELIABILITY_INDEX = 8.0
+CHANCE_RANGES = {
+    "index": Range(0.0, MAX_RELIABILITY_INDEX),
+    "probability": Range(0.5 * math.erfc(MAX_RELIABILITY_INDEX / math.sqrt(2.0)), 0.5),
+}
 
 
 def _chance(key, value):
@@ -1006,11 +1013,9 @@ def _chance(key, value):
                     f"unknown key constraints.{key}; allowed: {prefix}<q> with <q> life, static_capacity "
                     "or a quantity with a max_<q> / min_<q> constraint"
                 )
-            tab = {"constraints": {key: value}}
-            if kind == "probability":  # β = −Φ⁻¹(P) from 0 to 8
-                number = _number(tab, "constraints", key, 0.0, 0.5, low_open=True)
-            else:
-                number = _number(tab, "constraints", key, 0.0, 8.0)
+            number = _number(
+                {"constraints": {key: value}}, "constraints", key, rule=CHANCE_RANGES[kind]
+            )
             return kind, "life_km" if q == "life" else q, number
     return None
 
@@ -1585,7 +1590,33 @@ def _uncertainty(table, values, free):
         raise SpecError("uncertainty must be a table")
     numbers = jax.tree_util.tree_map(np.asarray, values)
     numbers["bounds"] = {k: np.asarray(b) for k, b in values["bounds"].items()}
-    return uncertainty.parse(section, numbers, VARIABLES, free)
+    return uncertainty.parse(section, numbers, VARIABLES, free, _number_domain)
+
+
+def _number_domain(section, key, variable):
+    """The allowed values of spec number ``values[section][key]``, as the spec checks them: its
+    Range in ``RANGES`` (a design variable's too); None where none bounds it. An
+    `uncertainty.Domain`, in the model's units (γ0 and other angles in rad)."""
+    from tripodjax.optimize.uncertainty import Domain
+
+    if variable is not None:
+        name, degrees = variable, variable == "gamma0_deg"
+        rule = variable_range(variable)
+    else:
+        file_key, units = _SPEC_UNITS.get((section, key), (key, None))
+        name, degrees = f"{section}.{file_key}", units == "deg"
+        rule = RANGES.get(name)
+    if rule is None or (rule.low is None and rule.high is None):
+        return None
+    scale = math.pi / 180.0 if degrees else 1.0
+    return Domain(
+        low=None if rule.low is None else rule.low * scale,
+        high=None if rule.high is None else rule.high * scale,
+        low_open=rule.low_open,
+        high_open=rule.high_open,
+        name=name,
+        allowed=rule.text(),
+    )
 
 
 def parse_spec(text: str, source: str = "spec", base: str | os.PathLike | None = None) -> Spec:

@@ -14,10 +14,16 @@ tolerance around the design's value). An entry is an inline table:
 Kinds (the mean or centre is the spec's value, or the design's for a design variable):
 
 - ``normal``: ``sd`` (in the number's unit) or ``cov`` (sd / |mean|); optional ``low`` /
-  ``high`` truncate it. A design variable is always truncated at its physical bound
-  (``conformity`` ≥ `MIN_CONFORMITY`, lengths > 0).
-- ``lognormal``: ``sd`` or ``cov`` of the number itself (mean > 0).
-- ``uniform``: ``low`` and ``high`` (absolute) or ``half_width`` around the mean.
+  ``high`` truncate it. Any number with a bounded domain is always truncated at its bounds
+  (the spec's own rule for the number, `spec.RANGES`: ``conformity`` 1.0005–2, ``hertz.P_d``
+  100–10 000 MPa, …), and a ``low`` / ``high`` outside the domain is refused.
+- ``lognormal``: ``sd`` or ``cov`` of the number itself (mean > 0); truncated at its domain's
+  bounds as a normal is (a low ≤ 0 cuts nothing: its values are > 0).
+- ``uniform``: ``low`` and ``high`` (absolute) or ``half_width`` around the mean; the interval
+  must lie within the number's domain (for ``half_width`` around a free variable, at every
+  design within its bounds).
+
+A spread whose variance overflows (sd above `MAX_SPREAD` ≈ 1.34e154) is refused.
 
 Inputs are independent unless ``correlation`` lists ``[key_a, key_b, ρ]`` triples: ρ is
 the correlation of the underlying standard normal variables (a Gaussian copula; for
@@ -30,6 +36,8 @@ traced); which keys are uncertain and their kinds are structure
 
 import dataclasses
 import math
+import sys
+import typing
 
 import jax.numpy as jnp
 import numpy as np
@@ -54,6 +62,26 @@ hertz.P_d = { distribution = "normal", cov = 0.05 }
 """
 
 
+# A spread whose square (the variance; the lognormal's log-variance ln(1 + CoV²)) overflows is
+# refused: sd ≤ √(float max) ≈ 1.34e154 (a normal's CoV times |mean|), a lognormal's CoV too.
+MAX_SPREAD = math.sqrt(sys.float_info.max)
+
+
+class Domain(typing.NamedTuple):
+    """The allowed values of an uncertain number (the spec's own rule for it), internal units.
+
+    ``low`` / ``high`` (None: unbounded), each excluded when ``low_open`` / ``high_open``;
+    ``name`` is the number's key in the file, ``allowed`` the rule in words and file units.
+    """
+
+    low: float | None
+    high: float | None
+    low_open: bool
+    high_open: bool
+    name: str
+    allowed: str
+
+
 @dataclasses.dataclass(frozen=True)
 class Input:
     """The static part of one uncertain number.
@@ -63,7 +91,7 @@ class Input:
         section, key: where its value lives in ``Spec.values``.
         kind: ``normal``, ``lognormal`` or ``uniform``.
         spread: ``sd``, ``cov`` (normal, lognormal), ``interval`` or ``half_width`` (uniform).
-        truncate_low, truncate_high: a normal input truncated below / above.
+        truncate_low, truncate_high: a normal or lognormal input truncated below / above.
         variable: the design variable it is (``R``, ``conformity``), or None.
     """
 
@@ -150,11 +178,30 @@ def _finite(where, entry, name):
     return float(value)
 
 
-def parse(table, values, variables, free):
+def _outside(domain, value, side, support):
+    """Whether ``value`` (internal units), the low (side 0) or high (side 1) end of a
+    distribution's values, leaves the domain; ``support``: the end is a value the input takes
+    (a uniform's), else a truncation point (a normal's, never reached: an open bound allowed)."""
+    bound = (domain.low, domain.high)[side]
+    if bound is None:
+        return False
+    strict = support and (domain.low_open, domain.high_open)[side]
+    return (
+        (value <= bound if strict else value < bound)
+        if side == 0
+        else (value >= bound if strict else value > bound)
+    )
+
+
+def parse(table, values, variables, free, domain_of=None):
     """The ``[uncertainty]`` table → (tuple of Input, numbers for ``values["uncertainty"]``).
 
     ``values`` are the spec's checked numbers (internal units), ``variables`` the spec's
-    ``VARIABLES``, ``free`` the free design variables. Raises SpecError on a bad entry.
+    ``VARIABLES``, ``free`` the free design variables, ``domain_of(section, key, variable)``
+    the number's allowed values, a `Domain` or None (unbounded). A distribution must keep to
+    them: a uniform's interval (over every design in the bounds, for ``half_width`` around a
+    free variable) and a normal's truncation points within them, a normal or lognormal
+    truncated at them where it gives none. Raises SpecError on a bad entry.
     """
     inputs, numbers, seen = [], {}, {}
     for path, entry in _entries(table, variables):
@@ -185,9 +232,9 @@ def parse(table, values, variables, free):
             )
         scale = math.pi / 180.0 if degrees else 1.0  # file units (deg) → internal (rad)
         nominal = float(values[section][key])
-        if variable in free:  # the design's value is not known here: check at the bounds' centre
-            nominal = float(np.mean(values["bounds"][variable]))
-        domain = variables[variable][3] if variable else None
+        # A free variable's mean is the design's, anywhere in its bounds: (lowest, highest).
+        means = tuple(map(float, values["bounds"][variable])) if variable in free else (nominal,)
+        domain = None if domain_of is None else domain_of(section, key, variable)
         number = {}
         truncate = [False, False]
         if kind in ("normal", "lognormal"):
@@ -196,17 +243,43 @@ def parse(table, values, variables, free):
                 raise _error(f"{where}: a {kind} distribution needs one of sd or cov (got {given})")
             spread = given[0]
             number["spread"] = _positive(where, entry, spread) * (scale if spread == "sd" else 1.0)
-            if kind == "lognormal" and not nominal > 0:
+            if kind == "lognormal" and not min(means) > 0:
                 raise _error(
-                    f"{where}: a lognormal distribution needs a mean > 0; {'.'.join(path)} = {nominal:g}"
+                    f"{where}: a lognormal distribution needs a mean > 0; {'.'.join(path)} = {min(means):g}"
                 )
+            # The largest sd (normal) or CoV (lognormal) over the means; its square must be finite.
+            size = max(map(abs, means)) if kind == "normal" else 1.0 / min(means)
+            if kind == "normal" and spread == "cov" and size == 0:
+                raise _error(
+                    f"{where}.cov = {entry['cov']!r} is not allowed: {'.'.join(path)} = 0 has no "
+                    "coefficient of variation; give sd"
+                )
+            factor = 1.0 if (kind == "normal") == (spread == "sd") else size
+            if not number["spread"] * factor <= MAX_SPREAD:
+                top = MAX_SPREAD / factor / (scale if spread == "sd" else 1.0)
+                raise _error(
+                    f"{where}.{spread} = {entry[spread]!r} is not allowed: a finite number > 0 "
+                    f"and ≤ {top:.4g} (a larger spread's variance overflows)"
+                )
+            if kind == "lognormal" and domain is not None:  # truncated at the domain's bounds
+                if domain.low is not None and domain.low > 0:
+                    truncate[0], number["low"] = True, domain.low
+                if domain.high is not None:
+                    truncate[1], number["high"] = True, domain.high
             if kind == "normal":
                 low = _finite(where, entry, "low") * scale if "low" in entry else None
                 high = _finite(where, entry, "high") * scale if "high" in entry else None
-                if domain is not None and domain[0] is not None:  # the physical bound
-                    low = domain[0] * scale if low is None else max(low, domain[0] * scale)
-                if domain is not None and domain[1] is not None:
-                    high = domain[1] * scale if high is None else min(high, domain[1] * scale)
+                for side, end in enumerate(("low", "high")):
+                    at = (low, high)[side]
+                    if domain is not None and at is not None and _outside(domain, at, side, False):
+                        raise _error(
+                            f"{where}.{end} = {entry[end]!r} is not allowed: {domain.name} "
+                            f"takes {domain.allowed}"
+                        )
+                if domain is not None and domain.low is not None and low is None:
+                    low = domain.low  # truncated at the number's bound, as a design variable's
+                if domain is not None and domain.high is not None and high is None:
+                    high = domain.high
                 if low is not None and high is not None and not low < high:
                     raise _error(
                         f"{where}: truncation [low, high] = [{low / scale:g}, {high / scale:g}] is not allowed: low < high"
@@ -221,7 +294,7 @@ def parse(table, values, variables, free):
                     raise _error(f"{where}: give low and high, or half_width, not both")
                 spread = "half_width"
                 number["spread"] = _positive(where, entry, "half_width") * scale
-                low, high = nominal - number["spread"], nominal + number["spread"]
+                low, high = min(means) - number["spread"], max(means) + number["spread"]
             else:
                 if "low" not in entry or "high" not in entry:
                     raise _error(
@@ -235,18 +308,16 @@ def parse(table, values, variables, free):
                         f"{where}: [low, high] = [{entry['low']!r}, {entry['high']!r}] is not allowed: low < high"
                     )
                 number["low"], number["high"] = low, high
-            if domain is not None:
-                d_low, d_high, low_open = domain
-                bad_low = d_low is not None and (
-                    low <= d_low * scale if low_open else low < d_low * scale
-                )
-                bad_high = d_high is not None and high > d_high * scale
-                if bad_low or bad_high:
+            for side, end in enumerate(("low", "high")):
+                at = (low, high)[side]
+                if domain is not None and _outside(domain, at, side, True):
+                    if spread == "half_width":
+                        around = "the bounds" if variable in free else "the mean"
+                        shown = f"half_width = {entry[spread]!r} (around {around}: {at / scale:g})"
+                    else:
+                        shown = f"{end} = {entry[end]!r}"
                     raise _error(
-                        f"{where}: the interval [{low / scale:g}, {high / scale:g}] leaves the domain of {variable} "
-                        f"({'>' if low_open else '≥'} {d_low:g}"
-                        + (f", ≤ {d_high:g}" if d_high is not None else "")
-                        + ")"
+                        f"{where}.{shown} is not allowed: {domain.name} takes {domain.allowed}"
                     )
         seen[(section, key)] = where
         inputs.append(
@@ -323,24 +394,36 @@ def realize(inputs, numbers, nominal, u):
             out.append(low + (high - low) * ndtr(z))
             continue
         sd = p["spread"] if spec.spread == "sd" else p["spread"] * jnp.abs(mean)
-        if spec.kind == "lognormal":
+        low = p["low"] if spec.truncate_low else None
+        high = p["high"] if spec.truncate_high else None
+        if spec.kind == "lognormal":  # a normal of ln x, truncated at ln low, ln high
             s2 = jnp.log1p((sd / mean) ** 2)
-            out.append(jnp.exp(jnp.log(mean) - 0.5 * s2 + jnp.sqrt(s2) * z))
-            continue
-        if spec.truncate_low or spec.truncate_high:  # inverse CDF of the truncated normal
-            below = ndtr((p["low"] - mean) / sd) if spec.truncate_low else 0.0  # mass cut off
-            above = ndtr((mean - p["high"]) / sd) if spec.truncate_high else 0.0
-            kept = 1.0 - below - above
-            # Each tail from its own side, so that ndtr never rounds to 1; where the cut mass
-            # underflows (a bound many sd away) the input is the plain normal, for any z.
-            cut = (below > 0) | (above > 0)
-            t = jnp.where(cut, z, 0.0)
-            lower = ndtri(below + kept * ndtr(jnp.minimum(t, 0.0)))
-            upper = -ndtri(above + kept * ndtr(-jnp.maximum(t, 0.0)))
-            out.append(mean + sd * jnp.where(cut, jnp.where(t < 0.0, lower, upper), z))
+            bounds = [None if b is None else jnp.log(b) for b in (low, high)]
+            log_value = _truncated_normal(jnp.log(mean) - 0.5 * s2, jnp.sqrt(s2), *bounds, z)
+            value = jnp.exp(log_value)
         else:
-            out.append(mean + sd * z)
+            value = _truncated_normal(mean, sd, low, high, z)
+        # Never past a bound by rounding (mean + sd·(a − ε) with a = (low − mean)/sd).
+        value = value if low is None else jnp.maximum(value, low)
+        out.append(value if high is None else jnp.minimum(value, high))
     return jnp.stack(out, axis=-1)
+
+
+def _truncated_normal(mean, sd, low, high, z):
+    """The normal of ``mean``, ``sd`` truncated at ``low`` / ``high`` (None: not cut) at the
+    standard normal point ``z``: its inverse CDF at Φ(z)."""
+    if low is None and high is None:
+        return mean + sd * z
+    below = ndtr((low - mean) / sd) if low is not None else 0.0  # the mass cut off
+    above = ndtr((mean - high) / sd) if high is not None else 0.0
+    kept = 1.0 - below - above
+    # Each tail from its own side, so that ndtr never rounds to 1; where the cut mass
+    # underflows (a bound many sd away) the input is the plain normal, for any z.
+    cut = (below > 0) | (above > 0)
+    t = jnp.where(cut, z, 0.0)
+    lower = ndtri(below + kept * ndtr(jnp.minimum(t, 0.0)))
+    upper = -ndtri(above + kept * ndtr(-jnp.maximum(t, 0.0)))
+    return mean + sd * jnp.where(cut, jnp.where(t < 0.0, lower, upper), z)
 
 
 def nominal(structure, values, x):

@@ -82,6 +82,64 @@ def row(result, name):
             '"hertz.P_d" = { distribution = "normal", cov = 0.05 }',
             ("uncertainty.hertz.P_d", "twice"),
         ),
+        # A distribution's values within the number's own rule (the spec's check of that key).
+        (
+            'hertz.P_d = { distribution = "uniform", low = -2000.0, high = 2000.0 }',
+            ("uncertainty.hertz.P_d.low = -2000.0 is not allowed: hertz.P_d takes", "> 0 MPa"),
+        ),
+        (
+            'vehicle.mass_kg = { distribution = "uniform", low = -100.0, high = 2000.0 }',
+            ("uncertainty.vehicle.mass_kg.low = -100.0", "vehicle.mass_kg takes", "> 0 kg"),
+        ),
+        (
+            'outboard.pressure_angle_deg = { distribution = "uniform", low = 10.0, high = 100.0 }',
+            ("uncertainty.outboard.pressure_angle_deg.high = 100.0", "> 0° and < 90°"),
+        ),
+        (
+            'loads.shock_factor = { distribution = "uniform", low = 0.0, high = 2.0 }',
+            ("uncertainty.loads.shock_factor.low = 0.0", "loads.shock_factor takes", "> 0"),
+        ),
+        (
+            'hertz.P_d = { distribution = "normal", cov = 0.4, low = -5.0 }',
+            ("uncertainty.hertz.P_d.low = -5.0", "> 0 MPa"),
+        ),
+        (
+            'conformity = { distribution = "normal", sd = 0.01, low = 1.0 }',
+            ("uncertainty.conformity.low = 1.0", "≥ 1.0005"),
+        ),
+        (
+            'layout.gamma0_deg = { distribution = "normal", sd = 3.0, high = 50.0 }',
+            ("uncertainty.layout.gamma0_deg.high = 50.0", "≤ 45°"),
+        ),
+        (
+            'R = { distribution = "uniform", half_width = 16.0 }',  # R's bounds [15, 40] mm
+            ("uncertainty.R.half_width = 16.0", "around the bounds: -1", "> 0 mm"),
+        ),
+        (
+            'conformity = { distribution = "lognormal", cov = 0.01 }',
+            ("uncertainty.conformity.distribution = 'lognormal'", "≥ 1.0005"),
+        ),
+        (
+            'vehicle.front_share = { distribution = "lognormal", cov = 0.1 }',
+            ("uncertainty.vehicle.front_share.distribution", "≤ 1"),
+        ),
+        # A spread whose variance overflows.
+        (
+            'hertz.P_d = { distribution = "normal", sd = 1e300 }',
+            ("hertz.P_d.sd = 1e+300", "≤ 1.341e+154"),
+        ),
+        (
+            'hertz.P_d = { distribution = "normal", cov = 1e300 }',
+            ("hertz.P_d.cov = 1e+300", "≤ 9.954e+150"),
+        ),
+        (
+            'hertz.P_d = { distribution = "lognormal", cov = 1e300 }',
+            ("hertz.P_d.cov = 1e+300", "≤ 1.341e+154"),
+        ),
+        (
+            'loads.gaf_torque = { distribution = "normal", cov = 0.1 }\n[loads]\ngaf_torque = 0.0',
+            ("uncertainty.loads.gaf_torque.cov = 0.1", "give sd"),
+        ),
     ],
 )
 def test_bad_uncertainty_is_one_line_naming_key_and_value(text, names):
@@ -129,14 +187,27 @@ def test_a_quoted_dotted_key_is_the_nested_one():
         ("max_failure_probability_life = 1e-3", "needs uncertain numbers"),
         ("max_failure_probability_life = 0.7", "≤ 0.5"),
         ("min_reliability_index_life = -1", "≥ 0"),
+        # One rule for both forms: β_t ≤ 8, P ≥ Φ(−8) ≈ 6.2e-16 (1e-300 was β ≈ 37).
+        ("min_reliability_index_life = 8.5", "= 8.5 is not allowed: a finite number ≥ 0 and ≤ 8"),
+        ("max_failure_probability_life = 1e-300", "= 1e-300 is not allowed: .* ≥ 6.22096e-16 and"),
+        ("max_failure_probability_life = 6.2e-16", "≥ 6.22096e-16 and ≤ 0.5"),
         ("max_failure_probability_eccentricity = 1e-3", "no constraint"),
         ("max_failure_probability_colour = 1e-3", "unknown key constraints."),
     ],
 )
 def test_bad_chance_constraint(text, expected):
     unc = "" if "needs" in expected else TOLERANCES
-    with pytest.raises(optimize.SpecError, match=expected):
+    with pytest.raises(optimize.SpecError, match=expected) as error:
         optimize.parse_spec(unc + "[constraints]\n" + text)
+    assert "\n" not in str(error.value)
+
+
+def test_chance_targets_at_the_ends_of_their_one_range():
+    """β_t = 8 and its probability Φ(−8) are both allowed: the same target."""
+    p = optimize.spec.CHANCE_RANGES["probability"][0]
+    assert p == pytest.approx(stats.norm.sf(8.0), rel=1e-12)
+    for text in ("min_reliability_index_life = 8.0", f"max_failure_probability_life = {p!r}"):
+        optimize.parse_spec(TOLERANCES + "[constraints]\n" + text)
 
 
 def test_uncertain_numbers_are_traced_and_kinds_are_structure():
@@ -176,7 +247,10 @@ def test_distributions_against_scipy():
     lognormal = stats.lognorm(s, scale=1347.0 * math.exp(-0.5 * s * s))
     np.testing.assert_allclose(out[2:5, 1], lognormal.ppf(p[2:5]), rtol=1e-12)
     np.testing.assert_allclose(out[:, 2], stats.uniform(1.002, 0.006).ppf(p), rtol=1e-14)
-    np.testing.assert_allclose(out[:, 3], 1154.0 * (1 + 0.1 * u), rtol=1e-14)
+    # M_max > 0: its normal is truncated at 0 (10 sd below the mean: seen at u = −30 alone,
+    # which gave M_max = −2308 N·m before).
+    np.testing.assert_allclose(out[1:, 3], 1154.0 * (1 + 0.1 * u[1:]), rtol=1e-14)
+    assert out[0, 3] == 0.0  # the bound: Φ(−30) is below the cut mass Φ(−10)
     np.testing.assert_allclose(
         out[:, 4], math.radians(20.0) + math.radians(2.0) * (2 * p - 1), rtol=1e-14
     )
@@ -199,6 +273,37 @@ def test_a_normal_design_variable_is_truncated_at_its_physical_bound():
     np.testing.assert_allclose(
         out[60:81, 0], truncated.ppf(stats.norm.cdf(u[60:81, 0])), rtol=1e-12
     )
+
+
+def test_a_normal_on_any_bounded_number_is_truncated_at_its_bound():
+    """The spec's rule for the number bounds a normal as a design variable's does: P_d > 0
+    (CoV 0.4: 0.6 % of the plain normal below 0), front_share in [0, 1] (both sides); an
+    unbounded number (forces.speed_rpm) stays a plain normal."""
+    spec = optimize.parse_spec(
+        "[uncertainty]\n"
+        'hertz.P_d = { distribution = "normal", cov = 0.4 }\n'
+        'vehicle.front_share = { distribution = "normal", sd = 0.3 }\n'
+        'forces.speed_rpm = { distribution = "normal", cov = 0.1 }\n'
+    )
+    p_d, share, speed = spec.structure.uncertainty
+    assert (p_d.truncate_low, p_d.truncate_high) == (True, False)
+    assert (share.truncate_low, share.truncate_high) == (True, True)
+    assert not (speed.truncate_low or speed.truncate_high)
+    numbers = spec.values["uncertainty"]
+    assert float(numbers["hertz.P_d"]["low"]) == 0.0
+    assert float(numbers["vehicle.front_share"]["high"]) == 1.0
+    u = np.linspace(-35.0, 35.0, 141)
+    means = [1347.0, float(spec.values["vehicle"]["front_share"]), 3000.0]
+    with jax.enable_x64(True):
+        out = np.asarray(
+            uncertainty.realize(spec.structure.uncertainty, numbers, means, np.stack([u] * 3, -1))
+        )
+    assert np.all(out[:, 0] >= 0.0) and np.all(np.diff(out[:, 0]) >= 0)
+    assert np.all((out[:, 1] >= 0.0) & (out[:, 1] <= 1.0))
+    truncated = stats.truncnorm(-1 / 0.4, np.inf, loc=1347.0, scale=0.4 * 1347.0)
+    middle = slice(60, 81)  # |u| ≤ 5
+    np.testing.assert_allclose(out[middle, 0], truncated.ppf(stats.norm.cdf(u[middle])), rtol=1e-10)
+    np.testing.assert_allclose(out[:, 2], 3000.0 * (1 + 0.1 * u), rtol=1e-14)
 
 
 def test_correlation_is_that_of_the_underlying_normals():
@@ -236,6 +341,34 @@ def test_reliability_errors():
         optimize.reliability(spec, method="sorm")
     with pytest.raises(ValueError, match="samples = 0"):
         optimize.reliability(spec, method="mc", samples=0)
+
+
+@pytest.mark.parametrize(
+    ("argument", "value", "error", "expected"),
+    [
+        (
+            "seed",
+            2**70,
+            ValueError,
+            "seed = 1180591620717411303424 .* 0 ≤ seed ≤ 9223372036854775807",
+        ),
+        ("seed", 2**63, ValueError, "0 ≤ seed ≤ 9223372036854775807"),
+        ("seed", -1, ValueError, "seed = -1"),
+        ("samples", 10**9 + 1, ValueError, "2 ≤ samples ≤ 1000000000"),
+        ("is_samples", 10**12, ValueError, "2 ≤ is_samples ≤ 1000000000"),
+        ("chunk", 2**20 + 1, ValueError, "1 ≤ chunk ≤ 1048576"),
+        ("chunk", 0, ValueError, "chunk = 0"),
+        ("chunk", 2.0, TypeError, "chunk = 2.0"),
+        ("samples", True, TypeError, "samples = True"),
+        ("seed", np.array([1, 2]), TypeError, "seed = array"),
+    ],
+)
+def test_reliability_arguments_have_ranges(argument, value, error, expected):
+    """Each count and the seed in one range, checked before anything compiles; one line."""
+    spec = optimize.parse_spec(TOLERANCES)
+    with pytest.raises(error, match=expected) as raised:
+        optimize.reliability(spec, method="mc", **{argument: value})
+    assert "\n" not in str(raised.value)
 
 
 def _life_margin_batch(spec):
@@ -470,15 +603,51 @@ def _margin_at_mean(spec):
 
 
 def test_non_finite_samples_count_as_misses():
-    """Samples where the model gives no finite margin are counted, never dropped."""
-    spec = optimize.parse_spec(
-        '[uncertainty]\nhertz.P_d = { distribution = "normal", sd = 1000.0 }\n'
-    )  # P_d < 0 in about 9 % of the samples: no finite life
+    """Samples where the model gives no finite margin are counted, never dropped, and each is a
+    miss (an infinite margin too). P_d lognormal, CoV 1e30: P_d is 1e-27 MPa at the median,
+    and below about u = −1 the life overflows (its margin is +inf, result nonfinite); the
+    fraction of samples with no finite margin is Φ(u*), u* the edge of the finite margins found
+    on a grid of u through the limit state, and the life is missed below u ≈ 5.8. (A normal on P_d, which gave P_d < 0 here before,
+    is now truncated at P_d's bound.)"""
+    text = '[uncertainty]\nhertz.P_d = { distribution = "lognormal", cov = 1e30 }\n'
+    spec = optimize.parse_spec(text)
+    structure = requirement_structure(spec.structure)
+    values, x = optimize.problem.design_values(spec, optimize.problem.fixed_design(spec.values))
+    grid = np.linspace(-4.0, 8.0, 12001)
+    with jax.enable_x64(True):
+        margins = jax.jit(
+            jax.vmap(
+                lambda u: optimize.problem.limit_state(structure, values, jnp.asarray(x), u)[0]
+            )
+        )(jnp.asarray(grid[:, None]))
+    finite = np.all(np.isfinite(np.asarray(margins)), axis=1)
+    edge = grid[np.argmax(finite)]  # finite from here up, none below
+    assert 0.05 < stats.norm.cdf(edge) < 0.5 and np.all(finite[grid >= edge])
+    life = np.asarray(margins)[:, 1]
+    met = grid[np.argmax(finite & (life >= 0))]  # the life is met from here up (u ≈ 5.8)
+    assert np.all(life[finite & (grid < met)] < 0)
     result = optimize.reliability(spec, None, "mc", samples=20_000, chunk=4096)
     status = result["status"]
-    negative = stats.norm.cdf(-1347.0 / 1000.0)
-    assert status["mc_nonfinite_samples"] / 20_000 == pytest.approx(negative, abs=0.01)
-    assert row(result, "life")["probability_mc"] >= status["mc_nonfinite_samples"] / 20_000
+    assert status["mc_nonfinite_samples"] / 20_000 == pytest.approx(stats.norm.cdf(edge), abs=0.01)
+    # Every sample below u ≈ 5.8 misses: the non-finite ones too (they counted as met before).
+    assert row(result, "life")["probability_mc"] == pytest.approx(stats.norm.cdf(met), abs=1e-3)
+
+
+def test_form_without_a_finite_margin_at_the_mean_gives_no_probability():
+    """A margin (or gradient) that is not finite at the mean of the inputs is no requirement
+    independent of them: FORM has not converged, β and P are None (never 0 or 1), the note says
+    why (before: β = +∞, P = 0, converged). P_d lognormal, CoV 1e40: P_d is 1e-37 MPa at the
+    median, where the life overflows. One FORM program with the importance-sampling test's."""
+    spec = optimize.parse_spec(
+        '[uncertainty]\nhertz.P_d = { distribution = "lognormal", cov = 1e40 }\n'
+    )
+    result = optimize.reliability(spec, None, "form")
+    life = row(result, "life")
+    assert life["beta_form"] is None and life["probability_form"] is None
+    assert life["probability_sorm"] is None and not life["form_converged"]
+    assert life["form_result"] == "nonfinite" and "not finite at the mean" in life["form_note"]
+    assert result["status"]["form_converged"] is False
+    assert result["system_bounds_form"][1] is None  # an unknown P_i: no upper bound
 
 
 def test_chance_constraint_design_meets_its_probability_and_no_more():
@@ -706,6 +875,65 @@ def test_each_chance_margin_is_its_requirements_lowest_margin_on_the_sphere():
     # One chance constraint alone (no batch of targets): the same margin.
     single = optimize.evaluate(life_only, design)["constraints"]["max_failure_probability_life"]
     assert single == pytest.approx(margins["max_failure_probability_life"], abs=1e-12)
+
+
+def test_a_chance_margin_with_a_non_finite_point_on_its_sphere_is_undefined():
+    """A point of the PMA sphere whose margin is not finite leaves the minimum undefined: the
+    chance margin is NaN with a nonfinite code, never the lowest finite point's nor the mean's
+    (the nominal margin, which the solve took as the chance constraint's, 'converged').
+    P_d lognormal, CoV 1e12 (σ_ln 7.4): P_d is 1.3e-9 MPa at the mean (a finite life margin,
+    −248), 2e-35 MPa at u = −8 (the life overflows: no finite margin) and 1e17 MPa at u = +8.
+    One program, the cases vmapped over the traced CoV and β_t: CoV 1e12 at β_t 8 (the sphere
+    {−8, +8} half undefined) and at β_t 0 (the sphere is the mean: finite), CoV 0.05 at β_t 5
+    (finite everywhere: the lower point, below the mean's margin)."""
+    from tripodjax.optimize import problem
+    from tripodjax.results import RESULTS
+
+    spec = optimize.parse_spec(
+        '[uncertainty]\nhertz.P_d = { distribution = "lognormal", cov = 1e12 }\n'
+        "[constraints]\nmin_reliability_index_life = 8.0\n"
+    )
+    cov = jnp.asarray([1e12, 1e12, 0.05])
+    beta = jnp.asarray([8.0, 0.0, 5.0])
+    with jax.enable_x64(True):
+        values, x = problem.design_values(spec, {"R": 25.55, "d_roller": 43.5})
+        values = jax.tree_util.tree_map(jnp.asarray, values)
+
+        def case(c, b):
+            v = {
+                **values,
+                "uncertainty": {"hertz.P_d": {"spread": c}},
+                "constraints": {**values["constraints"], "min_reliability_index_life": b},
+            }
+            (margin,), code = problem.chance_margins(spec.structure, v, jnp.asarray(x))
+            at_mean = problem.limit_state(
+                problem.requirement_structure(spec.structure), v, jnp.asarray(x), jnp.zeros(1)
+            )[0][1]
+            return margin, code, at_mean
+
+        margin, code, at_mean = map(np.asarray, jax.jit(jax.vmap(case))(cov, beta))
+    assert np.all(np.isfinite(at_mean))  # the mean's (nominal) life margin is finite
+    assert np.isnan(margin[0]) and code[0, 0] == RESULTS.nonfinite
+    assert margin[1] == at_mean[1] and np.all(code[1] == RESULTS.successful)
+    assert np.isfinite(margin[2]) and margin[2] < at_mean[2]
+    assert np.all(code[2] == RESULTS.successful)
+
+
+def test_a_non_finite_chance_margin_is_named_in_the_verdict():
+    """The command's verdict names the chance constraint whose margin is not finite."""
+    import types
+
+    from tripodjax.optimize.cli import EXIT_NOT_CONVERGED, _verdict
+
+    result = types.SimpleNamespace(
+        result="nonfinite",
+        feasible=False,
+        constraints={"life": {"margin": 0.2}, "min_reliability_index_life": {"margin": math.nan}},
+    )
+    message, status = _verdict(result)
+    assert status == EXIT_NOT_CONVERGED and "\n" not in message
+    assert message.startswith("not converged: the margin of min_reliability_index_life is not")
+    assert "inverse-FORM" in message
 
 
 def test_chance_margin_derivatives_are_those_at_the_point_held_fixed():

@@ -363,10 +363,13 @@ def check_integer(name, value, minimum=None, maximum=None):
     is_int = isinstance(value, (numbers.Integral, np.ndarray, jax.Array)) and not isinstance(
         value, (bool, np.bool_)
     )
-    if not is_int or np.asarray(value).dtype.kind not in "iu":
-        raise TypeError(_not_allowed(name, value, rule))
     lo = -math.inf if minimum is None else minimum
     hi = math.inf if maximum is None else maximum
+    if is_int and isinstance(value, int) and not lo <= value <= hi:  # any size: out of range
+        shown = _show_int(value) if abs(value) > 10**30 else repr(value)
+        raise ValueError(f"{name} = {shown} is outside the allowed range: {rule}")
+    if not is_int or np.asarray(value).dtype.kind not in "iu":
+        raise TypeError(_not_allowed(name, value, rule))
     check(name, value, lambda a: (a >= lo) & (a <= hi), rule)
     return value
 
