@@ -1,6 +1,8 @@
 """Uncertain spec numbers and the reliability of a design: FORM, SORM, Monte Carlo, importance
 sampling, chance constraints; OpenTURNS as the peer on a limit state both evaluate."""
 
+import copy
+import dataclasses
 import importlib
 import math
 
@@ -85,11 +87,11 @@ def row(result, name):
         # A distribution's values within the number's own rule (the spec's check of that key).
         (
             'hertz.P_d = { distribution = "uniform", low = -2000.0, high = 2000.0 }',
-            ("uncertainty.hertz.P_d.low = -2000.0 is not allowed: hertz.P_d takes", "> 0 MPa"),
+            ("uncertainty.hertz.P_d.low = -2000.0 is not allowed: hertz.P_d takes", "≥ 100 MPa"),
         ),
         (
             'vehicle.mass_kg = { distribution = "uniform", low = -100.0, high = 2000.0 }',
-            ("uncertainty.vehicle.mass_kg.low = -100.0", "vehicle.mass_kg takes", "> 0 kg"),
+            ("uncertainty.vehicle.mass_kg.low = -100.0", "vehicle.mass_kg takes", "≥ 50 kg"),
         ),
         (
             'outboard.pressure_angle_deg = { distribution = "uniform", low = 10.0, high = 100.0 }',
@@ -97,11 +99,15 @@ def row(result, name):
         ),
         (
             'loads.shock_factor = { distribution = "uniform", low = 0.0, high = 2.0 }',
-            ("uncertainty.loads.shock_factor.low = 0.0", "loads.shock_factor takes", "> 0"),
+            (
+                "uncertainty.loads.shock_factor.low = 0.0",
+                "loads.shock_factor takes",
+                "≥ 1 and ≤ 10",
+            ),
         ),
         (
             'hertz.P_d = { distribution = "normal", cov = 0.4, low = -5.0 }',
-            ("uncertainty.hertz.P_d.low = -5.0", "> 0 MPa"),
+            ("uncertainty.hertz.P_d.low = -5.0", "≥ 100 MPa"),
         ),
         (
             'conformity = { distribution = "normal", sd = 0.01, low = 1.0 }',
@@ -113,15 +119,7 @@ def row(result, name):
         ),
         (
             'R = { distribution = "uniform", half_width = 16.0 }',  # R's bounds [15, 40] mm
-            ("uncertainty.R.half_width = 16.0", "around the bounds: -1", "> 0 mm"),
-        ),
-        (
-            'conformity = { distribution = "lognormal", cov = 0.01 }',
-            ("uncertainty.conformity.distribution = 'lognormal'", "≥ 1.0005"),
-        ),
-        (
-            'vehicle.front_share = { distribution = "lognormal", cov = 0.1 }',
-            ("uncertainty.vehicle.front_share.distribution", "≤ 1"),
+            ("uncertainty.R.half_width = 16.0", "around the bounds: -1", "≥ 1 mm"),
         ),
         # A spread whose variance overflows.
         (
@@ -247,10 +245,10 @@ def test_distributions_against_scipy():
     lognormal = stats.lognorm(s, scale=1347.0 * math.exp(-0.5 * s * s))
     np.testing.assert_allclose(out[2:5, 1], lognormal.ppf(p[2:5]), rtol=1e-12)
     np.testing.assert_allclose(out[:, 2], stats.uniform(1.002, 0.006).ppf(p), rtol=1e-14)
-    # M_max > 0: its normal is truncated at 0 (10 sd below the mean: seen at u = −30 alone,
-    # which gave M_max = −2308 N·m before).
+    # M_max ≥ 1 N·m (spec.RANGES): its normal is truncated there (10 sd below the mean: seen
+    # at u = −30 alone, which gave M_max = −2308 N·m before).
     np.testing.assert_allclose(out[1:, 3], 1154.0 * (1 + 0.1 * u[1:]), rtol=1e-14)
-    assert out[0, 3] == 0.0  # the bound: Φ(−30) is below the cut mass Φ(−10)
+    assert out[0, 3] == 1.0  # the bound: Φ(−30) is below the cut mass Φ(−10)
     np.testing.assert_allclose(
         out[:, 4], math.radians(20.0) + math.radians(2.0) * (2 * p - 1), rtol=1e-14
     )
@@ -275,35 +273,42 @@ def test_a_normal_design_variable_is_truncated_at_its_physical_bound():
     )
 
 
-def test_a_normal_on_any_bounded_number_is_truncated_at_its_bound():
-    """The spec's rule for the number bounds a normal as a design variable's does: P_d > 0
-    (CoV 0.4: 0.6 % of the plain normal below 0), front_share in [0, 1] (both sides); an
-    unbounded number (forces.speed_rpm) stays a plain normal."""
+def test_a_normal_or_lognormal_is_truncated_at_its_numbers_range():
+    """The spec's rule for the number (spec.RANGES) bounds a distribution as a design variable's
+    does: P_d in [100, 10 000] MPa (CoV 0.4: 1 % of the plain normal below 100), front_share in
+    [0, 1]; a lognormal M_max in [1, 50 000] N·m, in log space (its upper end 8 of its sd
+    away: the plain lognormal there to roundoff, and never past the end)."""
     spec = optimize.parse_spec(
+        "[loads]\nM_max = 1154.0\n"
         "[uncertainty]\n"
         'hertz.P_d = { distribution = "normal", cov = 0.4 }\n'
         'vehicle.front_share = { distribution = "normal", sd = 0.3 }\n'
-        'forces.speed_rpm = { distribution = "normal", cov = 0.1 }\n'
+        'loads.M_max = { distribution = "lognormal", cov = 0.5 }\n'
     )
-    p_d, share, speed = spec.structure.uncertainty
-    assert (p_d.truncate_low, p_d.truncate_high) == (True, False)
-    assert (share.truncate_low, share.truncate_high) == (True, True)
-    assert not (speed.truncate_low or speed.truncate_high)
+    p_d, share, torque = spec.structure.uncertainty
+    for x in (p_d, share, torque):
+        assert (x.truncate_low, x.truncate_high) == (True, True)
     numbers = spec.values["uncertainty"]
-    assert float(numbers["hertz.P_d"]["low"]) == 0.0
+    ranges = optimize.spec.RANGES
+    assert float(numbers["hertz.P_d"]["low"]) == ranges["hertz.P_d"].low == 100.0
     assert float(numbers["vehicle.front_share"]["high"]) == 1.0
+    assert float(numbers["loads.M_max"]["high"]) == ranges["loads.M_max"].high
     u = np.linspace(-35.0, 35.0, 141)
-    means = [1347.0, float(spec.values["vehicle"]["front_share"]), 3000.0]
+    means = [1347.0, float(spec.values["vehicle"]["front_share"]), 1154.0]
     with jax.enable_x64(True):
         out = np.asarray(
             uncertainty.realize(spec.structure.uncertainty, numbers, means, np.stack([u] * 3, -1))
         )
-    assert np.all(out[:, 0] >= 0.0) and np.all(np.diff(out[:, 0]) >= 0)
+    assert np.all((out[:, 0] >= 100.0) & (out[:, 0] <= 1e4)) and np.all(np.diff(out[:, 0]) >= 0)
     assert np.all((out[:, 1] >= 0.0) & (out[:, 1] <= 1.0))
-    truncated = stats.truncnorm(-1 / 0.4, np.inf, loc=1347.0, scale=0.4 * 1347.0)
+    assert np.all((out[:, 2] >= 1.0) & (out[:, 2] <= 5e4)) and np.all(np.diff(out[:, 2]) >= 0)
+    sd = 0.4 * 1347.0
+    truncated = stats.truncnorm((100.0 - 1347.0) / sd, (1e4 - 1347.0) / sd, loc=1347.0, scale=sd)
     middle = slice(60, 81)  # |u| ≤ 5
     np.testing.assert_allclose(out[middle, 0], truncated.ppf(stats.norm.cdf(u[middle])), rtol=1e-10)
-    np.testing.assert_allclose(out[:, 2], 3000.0 * (1 + 0.1 * u), rtol=1e-14)
+    s2 = math.log1p(0.5**2)
+    plain = stats.lognorm(math.sqrt(s2), scale=1154.0 * math.exp(-0.5 * s2))
+    np.testing.assert_allclose(out[middle, 2], plain.ppf(stats.norm.cdf(u[middle])), rtol=1e-10)
 
 
 def test_correlation_is_that_of_the_underlying_normals():
@@ -602,6 +607,15 @@ def _margin_at_mean(spec):
     return float(m[1])
 
 
+def _without_the_range_of_p_d(spec):
+    """``spec`` with the truncation of its P_d lognormal widened from P_d's range (100–10 000 MPa,
+    spec.RANGES, which keeps the model finite) to 1e-300–1e300 MPa: in the numbers, not the file
+    (which refuses it), so that the model overflows at tiny P_d as these tests need."""
+    values = copy.deepcopy(spec.values)
+    values["uncertainty"]["hertz.P_d"].update(low=np.asarray(1e-300), high=np.asarray(1e300))
+    return dataclasses.replace(spec, values=values)
+
+
 def test_non_finite_samples_count_as_misses():
     """Samples where the model gives no finite margin are counted, never dropped, and each is a
     miss (an infinite margin too). P_d lognormal, CoV 1e30: P_d is 1e-27 MPa at the median,
@@ -610,7 +624,7 @@ def test_non_finite_samples_count_as_misses():
     on a grid of u through the limit state, and the life is missed below u ≈ 5.8. (A normal on P_d, which gave P_d < 0 here before,
     is now truncated at P_d's bound.)"""
     text = '[uncertainty]\nhertz.P_d = { distribution = "lognormal", cov = 1e30 }\n'
-    spec = optimize.parse_spec(text)
+    spec = _without_the_range_of_p_d(optimize.parse_spec(text))
     structure = requirement_structure(spec.structure)
     values, x = optimize.problem.design_values(spec, optimize.problem.fixed_design(spec.values))
     grid = np.linspace(-4.0, 8.0, 12001)
@@ -638,8 +652,10 @@ def test_form_without_a_finite_margin_at_the_mean_gives_no_probability():
     independent of them: FORM has not converged, β and P are None (never 0 or 1), the note says
     why (before: β = +∞, P = 0, converged). P_d lognormal, CoV 1e40: P_d is 1e-37 MPa at the
     median, where the life overflows. One FORM program with the importance-sampling test's."""
-    spec = optimize.parse_spec(
-        '[uncertainty]\nhertz.P_d = { distribution = "lognormal", cov = 1e40 }\n'
+    spec = _without_the_range_of_p_d(
+        optimize.parse_spec(
+            '[uncertainty]\nhertz.P_d = { distribution = "lognormal", cov = 1e40 }\n'
+        )
     )
     result = optimize.reliability(spec, None, "form")
     life = row(result, "life")
@@ -889,9 +905,11 @@ def test_a_chance_margin_with_a_non_finite_point_on_its_sphere_is_undefined():
     from tripodjax.optimize import problem
     from tripodjax.results import RESULTS
 
-    spec = optimize.parse_spec(
-        '[uncertainty]\nhertz.P_d = { distribution = "lognormal", cov = 1e12 }\n'
-        "[constraints]\nmin_reliability_index_life = 8.0\n"
+    spec = _without_the_range_of_p_d(
+        optimize.parse_spec(
+            '[uncertainty]\nhertz.P_d = { distribution = "lognormal", cov = 1e12 }\n'
+            "[constraints]\nmin_reliability_index_life = 8.0\n"
+        )
     )
     cov = jnp.asarray([1e12, 1e12, 0.05])
     beta = jnp.asarray([8.0, 0.0, 5.0])
@@ -902,7 +920,7 @@ def test_a_chance_margin_with_a_non_finite_point_on_its_sphere_is_undefined():
         def case(c, b):
             v = {
                 **values,
-                "uncertainty": {"hertz.P_d": {"spread": c}},
+                "uncertainty": {"hertz.P_d": {**values["uncertainty"]["hertz.P_d"], "spread": c}},
                 "constraints": {**values["constraints"], "min_reliability_index_life": b},
             }
             (margin,), code = problem.chance_margins(spec.structure, v, jnp.asarray(x))
