@@ -156,7 +156,13 @@ def _locate(path, values, variables):
     degrees = False
     if section in values and key not in values[section] and key.endswith("_deg"):
         key, degrees = key[: -len("_deg")], True
-    if section not in values or key not in values[section]:
+    if section not in values:
+        raise _error(
+            f"unknown key {where}: [{section}] holds no number of the model (the solver's "
+            "settings cannot be uncertain); allowed: a design variable or section.key of a "
+            "number of the model, e.g. hertz.P_d"
+        )
+    if key not in values[section]:
         raise _error(f"unknown key {where}: the spec has no number {'.'.join(path)}")
     if np.ndim(values[section][key]) != 0:
         raise _error(f"{where}: {'.'.join(path)} is a list; only a single number can be uncertain")

@@ -55,6 +55,10 @@ def row(result, name):
         ),
         ('hertz.P_x = { distribution = "normal", cov = 0.05 }', ("uncertainty.hertz.P_x",)),
         (
+            'solver.tolerance = { distribution = "normal", cov = 0.05 }',
+            ("uncertainty.solver.tolerance", "[solver] holds no number of the model"),
+        ),
+        (
             'vehicle.engine_torque_Nm = { distribution = "normal", cov = 0.05 }',
             ("vehicle.engine_torque_Nm", "list"),
         ),
