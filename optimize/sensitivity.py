@@ -39,7 +39,7 @@ import numpy as np
 from tripodjax.optimize._compiled import call, latency_bound_jit
 from tripodjax.optimize.problem import bounds, check_result, check_spec, constraint_names
 from tripodjax.optimize.solver import Result, _evaluation, evaluate_points
-from tripodjax.optimize.spec import _SPEC_UNITS, VARIABLES, Spec, shaft_variable
+from tripodjax.optimize.spec import _SPEC_UNITS, VARIABLES, Spec, number_domain, shaft_variable
 
 ACTIVE_MULTIPLIER = 1e-6  # λ above this: the constraint is active
 SWITCH_STEP = 0.01  # relative change of an input within which a switch withholds its derivatives
@@ -83,27 +83,43 @@ def _pullback(structure, values, x, lists, cotangents):
 
 
 def _difference_rows(values, x, entries):
-    """Rows (values, x): the base point, ± a step in each variable and in each entry.
+    """Rows (values, x): the base point, ± a step in each variable and in each entry; and the
+    steps (hx of the variables, the entries' spans: plus minus minus).
 
-    ``entries`` are ((section, key), index) with index None for a scalar.
+    ``entries`` are ((section, key), index) with index None for a scalar. An entry on an end of
+    its number's allowed range (`spec.RANGES`: a working angle of 0, a share of 0 or 1) steps
+    inward alone, a one-sided difference: past the end the model is NaN (its domain).
     """
     hx = 1e-6 * np.maximum(np.abs(x), 1.0)
-    rows, hp = [(values, x)], []
+    rows, spans = [(values, x)], []
     for i, h in enumerate(hx):
         for sign in (1.0, -1.0):
             rows.append((values, x + sign * h * np.eye(x.size)[i]))
     for (section, key), index in entries:
         value = np.asarray(values[section][key], np.float64)
-        h = 1e-6 * max(abs(float(value if index is None else value[index])), 1e-3)
-        hp.append(h)
-        for sign in (1.0, -1.0):
+        at = float(value if index is None else value[index])
+        h = 1e-6 * max(abs(at), 1e-3)
+        domain = number_domain(section, key, None)
+        steps = [h, -h]
+        if domain is not None and any(_inside(domain, at + step) for step in steps):
+            steps = [step if _inside(domain, at + step) else 0.0 for step in steps]
+        spans.append(steps[0] - steps[1])
+        for step in steps:
             changed = np.array(value)
-            changed[() if index is None else index] += sign * h
+            changed[() if index is None else index] += step
             rows.append((dict(values, **{section: dict(values[section], **{key: changed})}), x))
     batch = jax.tree_util.tree_map(
         lambda *a: np.stack([np.asarray(v, np.float64) for v in a]), *[r[0] for r in rows]
     )
-    return batch, np.stack([r[1] for r in rows]), hx, np.asarray(hp)
+    return batch, np.stack([r[1] for r in rows]), hx, np.asarray(spans)
+
+
+def _inside(domain, value):
+    """Whether ``value`` lies in a number's allowed values (an `uncertainty.Domain`)."""
+    low = domain.low is None or (value > domain.low if domain.low_open else value >= domain.low)
+    return low and (
+        domain.high is None or (value < domain.high if domain.high_open else value <= domain.high)
+    )
 
 
 def _reversed_keys(inputs):
@@ -161,15 +177,15 @@ def _right_hand_side(structure, values, x, lam, inputs):
         if k not in reversed_keys
         for i in range(v.size)
     ]
-    batch, xs, hx, hp = _difference_rows(values, x, differenced)
+    batch, xs, hx, spans = _difference_rows(values, x, differenced)
     f, c, grad_f, jac, _, _ = evaluate_points(structure, batch, xs)
     L = f - c @ lam
     grad_L = grad_f - np.einsum("bmn,m->bn", jac, lam)
     G = np.concatenate([grad_L, c], 1)
     H = np.stack([(grad_L[1 + 2 * i] - grad_L[2 + 2 * i]) / (2 * hx[i]) for i in range(n)], 1)
     base = 1 + 2 * n
-    dG = (G[base::2] - G[base + 1 :: 2]).T / (2 * hp)
-    dL = (L[base::2] - L[base + 1 :: 2]) / (2 * hp)
+    dG = (G[base::2] - G[base + 1 :: 2]).T / spans
+    dL = (L[base::2] - L[base + 1 :: 2]) / spans
     columns, start = {}, 0
     for key, value in inputs.items():
         if key not in reversed_keys:

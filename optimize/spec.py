@@ -1590,10 +1590,10 @@ def _uncertainty(table, values, free):
         raise SpecError("uncertainty must be a table")
     numbers = jax.tree_util.tree_map(np.asarray, values)
     numbers["bounds"] = {k: np.asarray(b) for k, b in values["bounds"].items()}
-    return uncertainty.parse(section, numbers, VARIABLES, free, _number_domain)
+    return uncertainty.parse(section, numbers, VARIABLES, free, number_domain)
 
 
-def _number_domain(section, key, variable):
+def number_domain(section, key, variable):
     """The allowed values of spec number ``values[section][key]``, as the spec checks them: its
     Range in ``RANGES`` (a design variable's too); None where none bounds it. An
     `uncertainty.Domain`, in the model's units (γ0 and other angles in rad)."""

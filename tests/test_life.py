@@ -523,7 +523,8 @@ def _life_cases(x):
 
 def test_traced_inputs_outside_their_domain_give_a_nan_life_and_outside_validity():
     """Before: a negative d gave the life of +d, R or P_d < 0 an infinite one, an angle of 2 rad
-    1.7e-17 km, shares of [−0.5, 1.5] or [0.2, 0.2] a plausible one, all ``successful``."""
+    1.7e-17 km, shares of [−0.5, 1.5] a plausible one, all ``successful``. (That shares sum to
+    1 is checked where they are concrete: traced, a derivative moves one share alone.)"""
     good = dict(d=20.0, R=25.0, P_d=2400.0, torque0=900.0, share0=0.5, share1=0.5)
     good.update(angle0=0.2, w0=0.5, w1=0.5)
     bad = [
@@ -532,10 +533,8 @@ def test_traced_inputs_outside_their_domain_give_a_nan_life_and_outside_validity
         {"P_d": -2400.0},
         {"torque0": -900.0},
         {"share0": -0.5, "share1": 1.5},
-        {"share0": 0.2, "share1": 0.2},
         {"angle0": 2.0},
         {"w0": -0.5, "w1": 1.5},
-        {"w0": 0.2, "w1": 0.2},
     ]
     rows = [good] + [{**good, **b} for b in bad] + [{**good, "torque0": np.nan}]
     km, result, hours = jax.device_get(
@@ -546,7 +545,7 @@ def test_traced_inputs_outside_their_domain_give_a_nan_life_and_outside_validity
     assert np.all(result[1:-1] == hertz.RESULTS.outside_validity), result
     assert result[-1] == hertz.RESULTS.nonfinite
     # life_hours (no code): NaN for its own inputs outside (P_d, a torque, the shares)
-    assert np.all(np.isnan(hours[[3, 4, 5, 6, -1]])) and np.all(np.isfinite(hours[[1, 2, 7]]))
+    assert np.all(np.isnan(hours[[3, 4, 5, -1]])) and np.all(np.isfinite(hours[[1, 2, 6]]))
 
 
 def test_joint_life_takes_arrays_that_broadcast_and_names_those_that_do_not():

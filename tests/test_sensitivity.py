@@ -135,6 +135,11 @@ def test_solve_fills_sensitivities_on_request(default_result):
     assert sens is not None and sens["derivatives"]
     assert sens == sensitivity.sensitivities(SPEC, default_result)
     assert sens["switch_step"] == sensitivity.SWITCH_STEP == 0.01
+    # An input on an end of its range (the outboard's oblique angle 0, a share of 0 or 1) by a
+    # one-sided difference: every derivative finite (a step past the end gave NaN).
+    assert SPEC.values["outboard"]["oblique_angle"] == 0.0
+    derivatives = [v for row in sens["derivatives"].values() for v in row.values()]
+    assert np.all(np.isfinite(derivatives)) and "outboard.oblique_angle_deg" in sens["derivatives"]
 
 
 def test_default_spec_derivatives_agree_with_reoptimising(default_result):

@@ -318,8 +318,7 @@ def check_working_angle(name, value):
 
 
 SHARE_TOLERANCE = 1e-6
-"""Shares sum to 1 within this (`check_shares`; traced, `outside_shares` widens it by the dtype's
-rounding of the sum)."""
+"""Concrete shares sum to 1 within this (`check_shares`)."""
 
 
 def check_shares(name, share, axis=-1):
@@ -714,14 +713,12 @@ def outside_domains(domains, **values):
 
 
 def outside_shares(share, axis=-1):
-    """Traced shares, per slice along ``axis``: some finite share negative, or finite shares
-    whose sum is off 1 by more than `SHARE_TOLERANCE` (or, in float32, the rounding of the sum:
-    n·ε). Non-finite shares are not outside (they are ``nonfinite``)."""
+    """Traced shares, per slice along ``axis``: some finite share outside [0, 1]. Non-finite
+    shares are not outside (they are ``nonfinite``). That they sum to 1 is a relation between
+    numbers, checked where they are concrete (`check_shares`); traced, a derivative moves one
+    share alone (a sensitivity, the optimiser's derivatives w.r.t. one entry of a list), so
+    only each share's own domain is flagged."""
     share = jnp.asarray(share)
     if not share.ndim:
         share = share[None]
-    finite = jnp.all(jnp.isfinite(share), axis=axis)
-    eps = float(jnp.finfo(jnp.result_type(share, 0.0)).eps)
-    tolerance = max(SHARE_TOLERANCE, share.shape[axis] * eps)
-    off = jnp.abs(jnp.sum(share, axis=axis) - 1.0) > tolerance
-    return jnp.any(jnp.isfinite(share) & (share < 0), axis=axis) | (finite & off)
+    return jnp.any(jnp.isfinite(share) & ((share < 0) | (share > 1)), axis=axis)

@@ -101,7 +101,8 @@ DOMAINS = {
     "angle": HERTZ_DOMAINS["gamma"],  # a working angle, 0 ≤ γ < π/2 rad
 }
 """The spectrum's and conditions' domains (one rule for the concrete check and the traced
-flag); the shares sum to 1 (`check_shares`, traced `outside_shares`)."""
+flag); the shares lie in [0, 1] and, where concrete, sum to 1 (`check_shares`; traced,
+`outside_shares` flags a share outside [0, 1]: a derivative moves one share alone)."""
 
 
 def _angle_factor(gamma, law):
@@ -146,8 +147,8 @@ def life_hours(M_d: ArrayLike, torque: ArrayLike, speed: ArrayLike, share: Array
     torque or speed does no damage; a spectrum that does none lives for ever
     (``inf``). M_d > 0, torque ≥ 0, speed ≥ 0, shares ≥ 0 summing to 1, all
     finite; numbers or non-empty arrays (lists too). Inside ``jit`` a non-finite
-    input gives NaN, as does one outside its domain (a negative torque, shares
-    that do not sum to 1): this function has no result code.
+    input gives NaN, as does one outside its domain (a negative torque, a share
+    outside [0, 1]): this function has no result code.
     """
     check_domains(DOMAINS, M_d=M_d, torque=torque, speed=speed)
     check_broadcast(M_d=M_d)  # not empty
@@ -262,8 +263,8 @@ class Life:
         result: code (int32, [`RESULTS`][tripodjax.results.RESULTS]), per joint: the κ
             solve's, ``nonfinite`` where an input or the life is NaN, ``outside_validity``
             where a (traced) input lies outside its domain (a negative size or torque,
-            an angle ≥ π/2, shares that are negative or do not sum to 1; the lives are
-            then NaN). A spectrum that does no damage gives an infinite life, damage
+            an angle ≥ π/2, a share outside [0, 1]; the lives are then NaN; that concrete
+            shares sum to 1 is checked at the call). A spectrum that does no damage gives an infinite life, damage
             shares 0 and ``successful``.
     """
 
