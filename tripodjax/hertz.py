@@ -365,6 +365,15 @@ def contact_geometry(
     conformity = jnp.asarray(conformity, jnp.result_type(conformity, 0.0))
     longitudinal = jnp.asarray(longitudinal_conformity, conformity.dtype)
     inside = ~_outside(conformity=conformity, longitudinal_conformity=longitudinal)
+    return _geometry(conformity, longitudinal, inside)
+
+
+def _geometry(conformity, longitudinal, inside=True):
+    """`contact_geometry` past its checks; ``inside``: where the inputs lie in their domains
+    (its callers inside the library flag their inputs themselves). NaN where they do not or
+    are not finite."""
+    conformity = jnp.asarray(conformity, jnp.result_type(conformity, 0.0))
+    longitudinal = jnp.asarray(longitudinal, conformity.dtype)
     ok = inside & jnp.isfinite(conformity) & jnp.isfinite(longitudinal)
     chi_q = -1.0 / _nan_unless(ok, conformity)
     chi_l = _nan_unless(ok, longitudinal)
@@ -379,8 +388,9 @@ def contact_geometry(
 
 
 def _conformity_coefficient(conformity, longitudinal_conformity=0.0):
-    """(C_p, μν, κ-solve code) from a checked conformity (and longitudinal conformity χ_l)."""
-    geometry = contact_geometry(conformity, longitudinal_conformity)
+    """(C_p, μν, κ-solve code) from a checked conformity (and longitudinal conformity χ_l); its
+    callers flag a traced input outside its domain."""
+    geometry = _geometry(conformity, longitudinal_conformity)
     coefficients = _hertz_coefficients(geometry.cos_tau)
     C_p = HERTZ_STEEL / coefficients.mu_nu * geometry.d_sum_rho ** (2.0 / 3.0)
     return C_p, coefficients.mu_nu, coefficients.result
@@ -388,7 +398,8 @@ def _conformity_coefficient(conformity, longitudinal_conformity=0.0):
 
 def conformity_coefficient(conformity: ArrayLike) -> jax.Array:
     """C_p = (858/(μν)) (dΣρ)^(2/3) [MPa·N^(-1/3)·mm^(2/3)] for steel on steel (Ψ ≥ 1.0005)."""
-    return _conformity_coefficient(conformity)[0]
+    (conformity,) = _checked(conformity=conformity)
+    return _nan_unless(~_outside(conformity=conformity), _conformity_coefficient(conformity)[0])
 
 
 @pytree_dataclass
@@ -437,7 +448,7 @@ def roller_contact(
     load, d, conformity, young_modulus, poisson = _checked(
         load=load, d=d, conformity=conformity, young_modulus=young_modulus, poisson=poisson
     )
-    geometry = contact_geometry(conformity)
+    geometry = _geometry(conformity, 0.0)  # flagged below with the other inputs
     coefficients = _hertz_coefficients(geometry.cos_tau)
     sum_rho = geometry.d_sum_rho / d
     compliance = 3.0 * (1.0 - poisson**2) / (young_modulus * sum_rho)  # k³/Q [mm³/N]
@@ -462,8 +473,8 @@ def roller_contact(
 
 
 def _torque_at_pressure(pressure, d, R, C_p, C_s, n_rollers, pressure_angle, helix_angle, gamma):
-    """M(p) [N·m]; NaN where an input is not finite or lies outside its domain."""
-    outside = _outside(**locals())  # every parameter has its domain (DOMAINS)
+    """M(p) [N·m] past the checks, NaN where an input is not finite (its callers flag a traced
+    input outside its domain)."""
     load_factor = (pressure / (C_s * C_p)) ** 3
     torque_nmm = (
         0.5
@@ -476,7 +487,7 @@ def _torque_at_pressure(pressure, d, R, C_p, C_s, n_rollers, pressure_angle, hel
         * jnp.cos(helix_angle)
     )
     ok = _finite(pressure, d, R, C_p, C_s, n_rollers, pressure_angle, helix_angle, gamma)
-    return _nan_unless(ok & ~outside, torque_nmm / 1000.0)
+    return _nan_unless(ok, torque_nmm / 1000.0)
 
 
 def torque_at_pressure(
@@ -500,7 +511,8 @@ def torque_at_pressure(
     broadcast together. Inside ``jit`` a non-finite input, or one outside its
     domain, gives NaN.
     """
-    return _torque_at_pressure(*_checked(**locals()))  # the parameters, in order
+    arguments = dict(zip(locals(), _checked(**locals()), strict=True))  # in order
+    return _nan_unless(~_outside(**arguments), _torque_at_pressure(**arguments))
 
 
 @pytree_dataclass
