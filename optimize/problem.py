@@ -179,6 +179,7 @@ def quantities(structure, values, design):
             C_s=h["C_s"],
             n_rollers=structure.n_rollers,
             gamma=design["gamma0_deg"],
+            domain_flags=False,  # the spec's ranges (and the bounds) keep them inside
         )
         q.update(static_capacity=caps.M_s, M_d=caps.M_d, M_sd=caps.M_sd)
         hertz_codes.append(caps.result)
@@ -288,6 +289,7 @@ def joint_life(structure, values, design):
         C_s=values["hertz"]["C_s"],
         n_rollers=structure.n_rollers,
         angle_law=structure.angle_law,
+        domain_flags=False,  # the spec's ranges (and the bounds) keep the inputs inside
     )
 
 

@@ -538,3 +538,34 @@ def test_the_pressure_rises_with_an_infinite_slope_from_zero_load():
     assert jax.grad(lambda q: hertz.roller_contact(q, 20.0, conformity=1.004).p_max)(0.0) == np.inf
     by_d = jax.grad(lambda d: hertz.roller_contact(0.0, d, conformity=1.004).p_max)(20.0)
     assert float(by_d) == 0.0
+
+
+def test_domain_flags_off_leaves_the_values_and_only_the_flags_out():
+    """``domain_flags=False`` (the optimiser, whose spec keeps its inputs inside): the same
+    capacities and life inside the domain; outside, no flag (the caller's promise)."""
+    from tripodjax import life
+
+    spectrum = life.LoadSpectrum(
+        torque=[600.0, 900.0], speed=[700.0, 300.0], share=[0.6, 0.4], vehicle_speed=[50.0, 90.0]
+    )
+    conditions = life.WorkingConditions(angle=[0.1, 0.2], share=[0.5, 0.5])
+
+    def both(P_s, flags):
+        caps = hertz.capacities(20.0, 25.0, **{**WORKBOOK, "P_s": P_s}, domain_flags=flags)
+        hours = life.joint_life(
+            20.0, 25.0, spectrum, conditions, conformity=1.004, P_d=P_s, C_s=1.2, domain_flags=flags
+        )
+        return caps.M_s, caps.result, hours.km, hours.result
+
+    on, off = (
+        jax.jit(jax.vmap(lambda p, f=f: both(p, f)))(jnp.array([2350.0, -2350.0]))
+        for f in (True, False)
+    )
+    for a, b in zip(on, off, strict=True):
+        np.testing.assert_array_equal(np.asarray(a)[0], np.asarray(b)[0])
+    assert np.isnan(on[0][1]) and on[1][1] == hertz.RESULTS.outside_validity
+    assert np.isnan(on[2][1]) and on[3][1] == hertz.RESULTS.outside_validity
+    with pytest.raises(
+        TypeError, match="domain_flags = 'no' is not allowed; allowed: True or False"
+    ):
+        hertz.capacities(20.0, 25.0, **WORKBOOK, domain_flags="no")

@@ -44,6 +44,7 @@ from tripodjax._checks import (
     check_choice,
     check_conformity,
     check_domains,
+    check_flag,
     check_integer,
     check_working_angle,
     outside_domains,
@@ -554,6 +555,7 @@ def capacities(
     helix_angle: ArrayLike = 0.0,
     gamma: ArrayLike = 0.0,
     longitudinal_conformity: ArrayLike = 0.0,
+    domain_flags: bool = True,
 ) -> Capacities:
     """Static and dynamic torque capacities of a joint with roller diameter d and PCR R [mm].
 
@@ -569,6 +571,9 @@ def capacities(
             [rad] (0); gamma: working angle in [0, π/2) [rad] for M_d and M_sd.
         longitudinal_conformity: χ_l in (−1, 1] (0 for straight tracks; see
             [`contact_geometry`][tripodjax.hertz.contact_geometry]).
+        domain_flags: False leaves out the traced inputs' domain flags below, for a
+            caller that keeps them inside their domains itself (the optimiser: its
+            spec's ranges lie inside them); a non-finite input still gives NaN.
 
     Every value finite; numbers or non-empty arrays (lists too) that broadcast
     together; concrete values are checked (``ValueError`` / ``TypeError`` naming
@@ -578,10 +583,12 @@ def capacities(
     Differentiable w.r.t. d, R, the conformity and the pressures; any dtype.
     """
     arguments = dict(locals())  # the parameters, as given
-    return _capacities(**dict(zip(arguments, _checked(**arguments), strict=True)))
+    flags = check_flag("domain_flags", arguments.pop("domain_flags"))
+    checked = dict(zip(arguments, _checked(**arguments), strict=True))
+    return _capacities(**checked, domain_flags=flags)
 
 
-@functools.partial(latency_bound_at_top_level, small_inputs=True)
+@functools.partial(latency_bound_at_top_level, small_inputs=True, static_argnames=("domain_flags",))
 def _capacities(
     d,
     R,
@@ -595,19 +602,22 @@ def _capacities(
     helix_angle,
     gamma,
     longitudinal_conformity,
+    *,
+    domain_flags=True,
 ):
     """`capacities` past its checks: one compiled program (its operations one by one compiled
     each on a first call)."""
-    arguments = dict(locals())  # every parameter has its domain (DOMAINS)
+    arguments = {k: v for k, v in locals().items() if k != "domain_flags"}  # each in DOMAINS
     C_p, product, kappa_code = _conformity_coefficient(conformity, longitudinal_conformity)
     common = (C_p, C_s, n_rollers, pressure_angle, helix_angle)
     M_s = _torque_at_pressure(P_s, d, R, *common, 0.0)
     M_d = _torque_at_pressure(P_d, d, R, *common, gamma)
     M_sd = _torque_at_pressure(P_sd, d, R, *common, gamma)
-    # Every input inside its domain (checked where concrete, here where traced: NaN outside).
-    outside = _outside(**arguments)
     finite = _finite(M_s, M_d, M_sd)
-    M_s, M_d, M_sd = (_nan_unless(~outside, M) for M in (M_s, M_d, M_sd))
+    outside = jnp.zeros((), bool)
+    if domain_flags:  # every input inside its domain (checked where concrete; traced: NaN)
+        outside = _outside(**arguments)
+        M_s, M_d, M_sd = (_nan_unless(~outside, M) for M in (M_s, M_d, M_sd))
     return Capacities(
         M_s=M_s,
         M_d=M_d,

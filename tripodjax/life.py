@@ -51,6 +51,7 @@ from tripodjax._checks import (
     check_broadcast,
     check_choice,
     check_domains,
+    check_flag,
     check_real,
     check_shares,
     check_working_angle,
@@ -292,6 +293,7 @@ def joint_life(
     helix_angle: ArrayLike = 0.0,
     angle_law: str = "workbook",
     longitudinal_conformity: ArrayLike = 0.0,
+    domain_flags: bool = True,
 ) -> Life:
     """Palmgren–Miner life of a joint in hours and km (4.2.1–4.2.3).
 
@@ -307,7 +309,8 @@ def joint_life(
     P_d > 0 [MPa]; C_s > 0; n_rollers an integer ≥ 1; angles as
     [`capacities`][tripodjax.hertz.capacities], as is ``longitudinal_conformity``
     (0 for straight tracks; a ball joint's curved tracks); ``angle_law`` ``"workbook"`` or
-    ``"seed"``.
+    ``"seed"``; ``domain_flags`` as [`capacities`][tripodjax.hertz.capacities]' (False: no
+    traced domain flags, for a caller that keeps its inputs inside their domains itself).
 
     Shapes: d, R, conformity, P_d, C_s, n_rollers, the angles and
     ``longitudinal_conformity`` are numbers or non-empty arrays (lists too) that
@@ -322,6 +325,7 @@ def joint_life(
     every spectrum and condition number.
     """
     arguments = dict(locals())  # the parameters, as given
+    check_flag("domain_flags", domain_flags)
     if not isinstance(spectrum, LoadSpectrum):
         raise TypeError(
             f"spectrum = {spectrum!r} ({type(spectrum).__name__}) is not allowed; "
@@ -337,7 +341,9 @@ def joint_life(
     return _joint_life(**{**arguments, **dict(zip(joint, _checked(**joint), strict=True))})
 
 
-@functools.partial(latency_bound_at_top_level, small_inputs=True, static_argnames="angle_law")
+@functools.partial(
+    latency_bound_at_top_level, small_inputs=True, static_argnames=("angle_law", "domain_flags")
+)
 def _joint_life(
     d,
     R,
@@ -351,6 +357,7 @@ def _joint_life(
     helix_angle,
     angle_law,
     longitudinal_conformity,
+    domain_flags,
 ):
     """`joint_life` past its checks: one compiled program (its operations one by one compiled
     each on a first call)."""
@@ -372,12 +379,16 @@ def _joint_life(
     finite = _finite(M_d) & _all_finite(
         angle, g, w, spectrum.torque, spectrum.speed, spectrum.share, spectrum.vehicle_speed
     )
-    outside = (
-        _outside_hertz(**joint)
-        | _spectrum_outside(spectrum.torque, spectrum.speed, spectrum.share, spectrum.vehicle_speed)
-        | jnp.any(outside_domains(DOMAINS, angle=angle))
-        | outside_shares(w)
-    )
+    outside = jnp.zeros((), bool)
+    if domain_flags:
+        outside = (
+            _outside_hertz(**joint)
+            | _spectrum_outside(
+                spectrum.torque, spectrum.speed, spectrum.share, spectrum.vehicle_speed
+            )
+            | jnp.any(outside_domains(DOMAINS, angle=angle))
+            | outside_shares(w)
+        )
     ok = finite & ~outside
     each = ok[..., None]  # per condition, per case
     hours = _hours(rate)
