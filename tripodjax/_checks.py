@@ -562,7 +562,7 @@ def outside_layout_domain(R, l, gamma0):
     same tolerance of `TOLERANCE_ULPS` ulps of the fields' dtype): R ≤ 0, l ≤ 0, γ0 < 0,
     γ0 > π/4 or R/l > 0.2, as a boolean array of the broadcast shape. Comparisons are false
     for NaN: a NaN field is ``nonfinite``, not outside the domain."""
-    dtype = np.dtype(jax.numpy.result_type(R, l, gamma0, 0.0))
+    dtype = np.dtype(jnp.result_type(R, l, gamma0, 0.0))
 
     def top(bound):
         bound = np.asarray(bound, dtype)
