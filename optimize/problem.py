@@ -239,7 +239,11 @@ def load_cycles(structure, values):
         differential_locking=v["differential_locking"],
     )
     return vehicle.load_cycles(
-        car, driving_modes(structure, values), values["life"]["required_km"], axle=structure.axle
+        car,
+        driving_modes(structure, values),
+        values["life"]["required_km"],
+        axle=structure.axle,
+        domain_flags=False,  # the spec's ranges lie inside the vehicle's domains
     )
 
 

@@ -125,7 +125,10 @@ def halfshaft_checks(structure, values, design):
     joint = outboard_joint(values)
     o = values["outboard"]
     caps = outboard.capacities(
-        joint, n_balls=structure.outboard_balls, reading=structure.outboard_reading
+        joint,
+        n_balls=structure.outboard_balls,
+        reading=structure.outboard_reading,
+        domain_flags=False,  # the spec's ranges lie inside its domains; the balls' fit stays
     )
     joint_life = outboard.joint_life(
         joint,
@@ -134,6 +137,7 @@ def halfshaft_checks(structure, values, design):
         n_balls=structure.outboard_balls,
         angle_law=structure.angle_law,
         reading=structure.outboard_reading,
+        domain_flags=False,
     )
     outer, inner = sections.outer_diameter, sections.inner_diameter
     return {

@@ -452,6 +452,39 @@ def test_traced_joint_inputs_outside_their_domain_give_nan_and_outside_validity(
         outboard.static_safety(joint, -1000.0)
 
 
+def test_domain_flags_off_keeps_the_values_and_the_balls_fit():
+    """``domain_flags=False`` (the optimiser): the same capacities and life inside the domain;
+    a traced tolerance of −2 is no longer flagged (the caller keeps it inside), overlapping
+    balls still are (a relation between d and R no range of one number can hold)."""
+    spectrum = life.LoadSpectrum(np.array([1154.0]), np.array([100.0]), np.array([28.0]), [1.0])
+    conditions = life.WorkingConditions(np.radians(ANGLES_DEG), SHARES)
+
+    def run(flags):
+        @jax.jit
+        @jax.vmap
+        def of(d, tolerance):
+            joint = outboard.FixedJoint(**{**JOINT, "d": d}, tolerance=tolerance)
+            caps = outboard.capacities(joint, domain_flags=flags)
+            out = outboard.joint_life(joint, spectrum, conditions, domain_flags=flags)
+            return caps.M_s, caps.result, out.km, out.result
+
+        return jax.device_get(
+            of(np.array([JOINT["d"], JOINT["d"], 40.0]), np.array([0.15, -2.0, 0.15]))
+        )
+
+    on, off = run(True), run(False)
+    for a, b in zip(on, off, strict=True):
+        np.testing.assert_array_equal(a[0], b[0])
+    outside = hertz.RESULTS.outside_validity
+    assert on[3][1] == outside and np.isnan(on[2][1])
+    assert off[3][1] == hertz.RESULTS.successful and np.isfinite(off[2][1])
+    for flagged in (on, off):  # the balls' fit
+        assert np.isnan(flagged[0][2]) and flagged[1][2] == outside
+        assert np.isnan(flagged[2][2]) and flagged[3][2] == outside
+    with pytest.raises(TypeError, match="domain_flags = 1 is not allowed; allowed: True or False"):
+        outboard.capacities(outboard.FixedJoint(**JOINT), domain_flags=1)
+
+
 def test_a_joint_whose_fields_do_not_broadcast_is_named():
     with pytest.raises(
         ValueError, match=r"^FixedJoint fields have shapes d \(2,\), R \(3,\), conformity \(\)"

@@ -230,6 +230,29 @@ def test_a_traced_vehicle_outside_its_domain_gives_nan_load_cycles():
     assert np.all(np.isnan(forward[1:])) and np.all(np.isnan(revolutions[1:]))
 
 
+def test_domain_flags_off_gives_the_same_cycles_without_the_flags():
+    """``domain_flags=False`` (the optimiser, whose spec keeps the vehicle inside): every
+    field equal inside the domain; a traced mass ≤ 0 is the caller's to keep out."""
+    modes = workbook_modes()
+
+    def run(flags):
+        return jax.jit(
+            jax.vmap(
+                lambda m: vehicle.load_cycles(
+                    workbook_vehicle(mass=m), modes, 1e5, domain_flags=flags
+                )
+            )
+        )(np.array([937.0, -937.0]))
+
+    on, off = run(True), run(False)
+    for a, b in zip(jax.tree_util.tree_leaves(on), jax.tree_util.tree_leaves(off), strict=True):
+        np.testing.assert_array_equal(a[0], b[0])
+        assert np.all(np.isnan(a[1]))
+    assert not np.isnan(off.revolutions[1]).any()
+    with pytest.raises(TypeError, match="domain_flags = 'off' is not allowed"):
+        vehicle.load_cycles(workbook_vehicle(), modes, 1e5, domain_flags="off")
+
+
 @pytest.mark.parametrize(
     "build, message",
     [

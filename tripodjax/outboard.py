@@ -66,6 +66,7 @@ from tripodjax._checks import (
     check,
     check_choice,
     check_domains,
+    check_flag,
     check_instance,
     check_integer,
     check_real,
@@ -150,11 +151,14 @@ def _balls_fit(d, R, n_balls):
     return d < 2.0 * R * math.sin(math.pi / n_balls)
 
 
-def _outside(joint, n_balls, *, tolerance=False):
+def _outside(joint, n_balls, *, tolerance=False, domain_flags=True):
     """Traced: where the joint's finite fields lie outside what its functions' hertz checks do
-    not cover: overlapping balls, a pressure angle of π/2 (and with ``tolerance`` its own)."""
+    not cover: overlapping balls, a pressure angle of π/2 (and with ``tolerance`` its own).
+    Without ``domain_flags`` only the balls' fit (a relation between two fields)."""
     d, R = jnp.asarray(joint.d), jnp.asarray(joint.R)
     overlap = jnp.isfinite(d) & jnp.isfinite(R) & ~_balls_fit(d, R, n_balls)
+    if not domain_flags:
+        return overlap
     fields = {"pressure_angle": joint.pressure_angle}
     if tolerance:
         fields["tolerance"] = joint.tolerance
@@ -227,7 +231,12 @@ def _table_factor(joint, reading):
 
 
 def capacities(
-    joint: FixedJoint, *, n_balls: int = 6, gamma: ArrayLike = 0.0, reading: str = "consistent"
+    joint: FixedJoint,
+    *,
+    n_balls: int = 6,
+    gamma: ArrayLike = 0.0,
+    reading: str = "consistent",
+    domain_flags: bool = True,
 ) -> hertz.Capacities:
     """M_s, M_d, M_sd [N·m] of the joint ([`hertz.capacities`][tripodjax.hertz.capacities]).
 
@@ -237,8 +246,11 @@ def capacities(
     at cos τ truncated to 10⁻³, the book table's step: the sheet's 2.540 and
     2.650; see the module docstring). The workbook reading is for reproducing the
     sheet: its μν steps with cos τ, so its derivatives hold the table's value fixed.
+    ``domain_flags`` as [`hertz.capacities`][tripodjax.hertz.capacities]' (False: no traced
+    flags of each field's own domain; the balls' fit, a relation between d and R, stays).
     """
     check_instance("joint", joint, FixedJoint, "an outboard.FixedJoint")
+    check_flag("domain_flags", domain_flags)
     _check_fit(joint, n_balls)
     factor = _table_factor(joint, reading)
     exact = hertz.capacities(
@@ -249,10 +261,11 @@ def capacities(
         P_sd=joint.P_sd,
         gamma=gamma,
         **_common(joint, n_balls),
+        domain_flags=domain_flags,
     )
     # The balls' fit where d and R are traced (checked above where concrete): NaN and
     # ``outside_validity`` where neighbours would overlap, never a plausible capacity.
-    inside = ~_outside(joint, n_balls)
+    inside = ~_outside(joint, n_balls, domain_flags=domain_flags)
     return dataclasses.replace(
         exact,
         M_s=_nan_unless(inside, exact.M_s * factor),
@@ -320,6 +333,7 @@ def joint_life(
     n_balls: int = 6,
     angle_law: str = "workbook",
     reading: str = "consistent",
+    domain_flags: bool = True,
 ) -> life.Life:
     """The joint's life (hours and km), ×(1 + tol), under the spectrum and its working conditions.
 
@@ -339,8 +353,11 @@ def joint_life(
       condition and combined within 0.3 % from the vehicle's inputs; the hours
       stay the chain's (1.7 % under the sheet's 1547 h at 0°). The tripod column of
       the same sheet is not this reading (docs/physics.md).
+
+    ``domain_flags`` as [`capacities`][tripodjax.outboard.capacities]'.
     """
     check_instance("joint", joint, FixedJoint, "an outboard.FixedJoint")
+    check_flag("domain_flags", domain_flags)
     _check_fit(joint, n_balls)
     for field in dataclasses.fields(joint):
         shape = jnp.shape(getattr(joint, field.name))
@@ -350,7 +367,7 @@ def joint_life(
                 "field, shape ()): jax.vmap(joint_life) over several"
             )
     table = _table_factor(joint, reading)
-    outside = _outside(joint, n_balls, tolerance=True)
+    outside = _outside(joint, n_balls, tolerance=True, domain_flags=domain_flags)
     out = life.joint_life(
         joint.d,
         joint.R,
@@ -359,6 +376,7 @@ def joint_life(
         P_d=joint.P_d,
         angle_law=angle_law,
         **_common(joint, n_balls),
+        domain_flags=domain_flags,
     )
     factor = (1.0 + jnp.asarray(joint.tolerance)) * table**3
     hours = out.hours * factor

@@ -59,6 +59,7 @@ from tripodjax._checks import (
     check_broadcast,
     check_choice,
     check_domains,
+    check_flag,
     check_range,
     check_real,
     check_shares,
@@ -269,7 +270,12 @@ class LoadCycles:
 
 
 def load_cycles(
-    vehicle: Vehicle, modes: DrivingModes, required_km: ArrayLike, *, axle: str = "rear"
+    vehicle: Vehicle,
+    modes: DrivingModes,
+    required_km: ArrayLike,
+    *,
+    axle: str = "rear",
+    domain_flags: bool = True,
 ) -> LoadCycles:
     """The load cycles of the halfshaft of ``axle`` ("rear" or "front") over ``required_km`` [km].
 
@@ -277,13 +283,16 @@ def load_cycles(
     ``vehicle``, ``modes`` and ``required_km``; ``vmap`` over any of them. ``required_km``
     a number > 0 (or an array that broadcasts against the cycles' shape (M, G + 1, 4)).
     Inside ``jit`` a traced input outside its domain (a mass ≤ 0, shares that do not sum to
-    1…) gives NaN in every field (``LoadCycles`` has no result code).
+    1…) gives NaN in every field (``LoadCycles`` has no result code). ``domain_flags=False``
+    leaves those traced flags out, for a caller that keeps its inputs inside their domains
+    itself (the optimiser: its spec's ranges lie inside them).
     """
     if not isinstance(vehicle, Vehicle):
         raise TypeError(f"vehicle = {vehicle!r} is not allowed; allowed: a vehicle.Vehicle")
     if not isinstance(modes, DrivingModes):
         raise TypeError(f"modes = {modes!r} is not allowed; allowed: a vehicle.DrivingModes")
     check_choice("axle", axle, AXLES)
+    check_flag("domain_flags", domain_flags)
     check_domains(DOMAINS, required_km=required_km)
     check_broadcast(required_km=required_km)  # not empty
     g_ratios, u = _shape(vehicle.ratios), _shape(modes.use)
@@ -298,7 +307,7 @@ def load_cycles(
             f"required_km has shape {km}; allowed: one number [km] (shape ()), or an array "
             f"that broadcasts against the cycles' shape (modes, gears + 1, 4) = {u}"
         )
-    return _load_cycles(vehicle, modes, required_km, axle)
+    return _load_cycles(vehicle, modes, required_km, axle, domain_flags)
 
 
 def _broadcasts(shape, onto):
@@ -309,8 +318,8 @@ def _broadcasts(shape, onto):
         return False
 
 
-@functools.partial(latency_bound_at_top_level, small_inputs=True, static_argnums=3)
-def _load_cycles(vehicle, modes, required_km, axle):
+@functools.partial(latency_bound_at_top_level, small_inputs=True, static_argnums=(3, 4))
+def _load_cycles(vehicle, modes, required_km, axle, domain_flags):
     """`load_cycles` past its checks: one compiled program (its operations one by one compiled
     each on a first call: 1.1 s, against 0.3 s)."""
     v = jax.tree_util.tree_map(jnp.asarray, vehicle)
@@ -338,11 +347,6 @@ def _load_cycles(vehicle, modes, required_km, axle):
     def per_mode(x):
         return jnp.broadcast_to(x, (n_modes, *x.shape))
 
-    # Every number inside its domain (checked where concrete; here where traced: NaN outside).
-    fields = {f.name: getattr(v, f.name) for f in dataclasses.fields(v)}
-    outside = outside_shares(modes.weight)
-    for name, value in {**fields, "required_km": required_km, "use": modes.use}.items():
-        outside |= jnp.any(outside_domains(DOMAINS, **{name: value}))
     cycles = LoadCycles(
         shaft_speed=per_mode(shaft_speed),
         vehicle_speed=per_mode(vehicle_speed),
@@ -357,6 +361,13 @@ def _load_cycles(vehicle, modes, required_km, axle):
         M_max_backward=jnp.max(working[-1]),
         shock_factor=k_s,
     )
+    if not domain_flags:
+        return cycles
+    # Every number inside its domain (checked where concrete; here where traced: NaN outside).
+    fields = {f.name: getattr(v, f.name) for f in dataclasses.fields(v)}
+    outside = outside_shares(modes.weight)
+    for name, value in {**fields, "required_km": required_km, "use": modes.use}.items():
+        outside |= jnp.any(outside_domains(DOMAINS, **{name: value}))
     return jax.tree_util.tree_map(lambda x: jnp.where(outside, jnp.nan, x), cycles)
 
 
