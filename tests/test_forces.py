@@ -615,6 +615,12 @@ def test_roller_forces_carry_the_kinematics_code_at_each_angle():
             lambda: forces.forces_halfshaft(CASE_N, forces.ForceInputs(jnp.array([1.0, 2.0]))),
             "inputs.torque has shape (2,); allowed: one number",
         ),
+        (  # traced (jit, no vmap): its shape is known too
+            lambda: jax.jit(lambda t: forces.forces_halfshaft(CASE_N, forces.ForceInputs(t)))(
+                jnp.array([1.0, 2.0])
+            ),
+            "inputs.torque has shape (2,); allowed: one number",
+        ),
         (
             lambda: forces.roller_forces(
                 Layout(np.array([25.0, 30.0]), 500.0, 0.3), np.zeros(3), forces.ForceInputs(1.0)
@@ -638,7 +644,15 @@ def test_roller_forces_carry_the_kinematics_code_at_each_angle():
             "inputs = 1000.0 is not allowed; allowed: a ForceInputs",
         ),
     ],
-    ids=["array-field", "shapes", "n_theta", "unknown-name", "one-string", "inputs-type"],
+    ids=[
+        "array-field",
+        "traced-array-field",
+        "shapes",
+        "n_theta",
+        "unknown-name",
+        "one-string",
+        "inputs-type",
+    ],
 )
 def test_bad_calls_say_what_is_wrong_in_one_line(call, message):
     with pytest.raises((ValueError, TypeError), match=re.escape(message)):

@@ -317,6 +317,13 @@ def test_friction_from_trunnion_force_recovers_a_known_coefficient():
             lambda: friction.gaf_halfshaft(seed_case("N"), [1000.0, 2000.0]),
             "torque has shape (2,); allowed: one number",
         ),
+        # ... traced too: under jit (no vmap) a shape-(2,) torque is two numbers as well
+        (
+            lambda: jax.jit(friction.gaf_halfshaft, static_argnums=0)(
+                seed_case("N"), jnp.array([1000.0, 2000.0])
+            ),
+            "torque has shape (2,); allowed: one number",
+        ),
         (
             lambda: friction.gaf_halfshaft(
                 seed_case("N"), 1000.0, friction.FrictionParams(mu_slp=np.array([0.1, 0.2, 0.3]))

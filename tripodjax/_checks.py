@@ -638,10 +638,11 @@ def checked_pytree_dataclass(cls: type[_T]) -> type[_T]:
 
 
 def check_one_number(name: str, inputs: object, allowed: str) -> None:
-    """Every concrete field of ``inputs`` (a pytree) one number (shape ()); else one ValueError
-    naming the field and its shape, with ``allowed`` saying what to do instead."""
+    """Every field of ``inputs`` (a pytree) one number (shape ()); else one ValueError naming
+    the field and its shape, with ``allowed`` saying what to do instead. A traced field's shape
+    is known too (under ``vmap`` that of one element)."""
     for path, leaf in jax.tree_util.tree_leaves_with_path(inputs):
-        if not isinstance(leaf, jax.core.Tracer) and np.ndim(leaf) != 0:
+        if np.ndim(leaf) != 0:
             within = jax.tree_util.keystr(path, simple=True, separator=".")
             field = f"{name}.{within}" if within else name  # ``inputs`` a field itself
             raise ValueError(f"{field} has shape {np.shape(leaf)}; allowed: {allowed}")
