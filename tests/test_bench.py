@@ -136,6 +136,14 @@ def test_latency_table_of_one_entry(tmp_path):
             "argument --cost-outputs: foo unknown; allowed: delta_pp,",
         ),
         (["--latency", "--repeats", "0"], "argument --repeats: '0' is not allowed"),
+        (  # an empty name: not every entry (minutes), nor a blank in the error
+            ["--latency", "--entries", ""],
+            "argument --entries: '' has an empty name; allowed: comma-separated names of readme,",
+        ),
+        (
+            ["--latency", "--entries", "readme,,solve"],
+            "argument --entries: 'readme,,solve' has an empty name",
+        ),
         (
             ["--latency", "--entries", "solve,foo"],
             "argument --entries: foo unknown; allowed: readme,",
@@ -187,3 +195,19 @@ def test_figures_that_cannot_be_written_are_one_line_and_leave_nothing(tmp_path,
     err = capsys.readouterr().err
     assert err.startswith("bench: cannot write ") and err.count("\n") == 1
     assert sorted(p.name for p in folder.iterdir()) == ["a.json", "b.json"]  # no temporary file
+
+
+def test_the_help_names_the_latency_mode_and_its_help_its_options(capsys):
+    """``--help`` says the latency mode exists; ``--latency --help`` lists its options once
+    each, with their defaults (the switch itself is not offered again)."""
+    from tripodjax import bench
+
+    for argv in (["--help"], ["--latency", "--help"]):
+        with pytest.raises(SystemExit) as stopped:
+            bench.main(argv)
+        assert stopped.value.code == 0
+    main_help, latency_help = capsys.readouterr().out.split("usage: ")[1:]
+    assert "python -m tripodjax.bench --latency [--help]" in " ".join(main_help.split())
+    usage = latency_help.splitlines()[0]
+    assert usage.count("--latency") == 1 and "--repeats N" in usage
+    assert "(default 3)" in " ".join(latency_help.split())

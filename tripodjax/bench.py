@@ -849,9 +849,14 @@ def latency_report(results: dict[str, Any], programs: int = 4) -> str:
 def _names(parser: argparse.ArgumentParser, flag: str, text: str | None, allowed: Sequence[str]):
     """The comma-separated names of ``flag`` (None where not given); an unknown one is the
     parser's one-line error."""
-    if not text:
+    if text is None:
         return None
     names = text.split(",")
+    if not all(names):
+        parser.error(
+            f"argument {flag}: {text!r} has an empty name; allowed: comma-separated names of "
+            f"{', '.join(allowed)}"
+        )
     unknown = [name for name in names if name not in allowed]
     if unknown:
         parser.error(
@@ -874,7 +879,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 2
-    parser = ArgumentParser(prog="python -m tripodjax.bench", description=__doc__.split("\n\n")[0])
+    parser = ArgumentParser(
+        prog="python -m tripodjax.bench",
+        description=__doc__.split("\n\n")[0],
+        epilog="python -m tripodjax.bench --latency [--help]: the compile-latency table instead "
+        "(trace, lowering, compile and run time of each first answer, in fresh processes)",
+    )
     parser.add_argument(
         "--layouts", type=count(1), default=20000, help="layouts per variant (default 20000)"
     )
@@ -964,10 +974,20 @@ def latency_main(argv: Sequence[str]) -> int:
     """``python -m tripodjax.bench --latency``: the compile-latency table (see `latency`)."""
     parser = ArgumentParser(
         prog="python -m tripodjax.bench --latency",
-        description="trace, compile and run time of each first answer, in fresh processes",
+        usage="%(prog)s [-h] [--repeats N] [--entries NAMES] [--gradient-layouts NS] [--json JSON]",
+        description="trace, lowering, compile and run time of each first answer, in fresh "
+        "processes with empty caches, against the floor of the same run",
     )
-    parser.add_argument("--latency", action="store_true", required=True)
-    parser.add_argument("--repeats", type=count(1), default=3, help="fresh runs per entry (median)")
+    parser.add_argument(
+        "--latency", action="store_true", required=True, help=argparse.SUPPRESS
+    )  # the mode's switch, taken by ``main``
+    parser.add_argument(
+        "--repeats",
+        type=count(1),
+        default=3,
+        metavar="N",
+        help="fresh runs per entry, the median kept (default 3)",
+    )
     parser.add_argument(
         "--entries",
         default=None,
