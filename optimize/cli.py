@@ -278,16 +278,16 @@ def _main(argv):
     args = _parse(argv)
     problem = label_problem("--revision", args.revision)  # the spec's rule for its names
     if problem is None:
+        from tripodjax.optimize.spec import SpecError, load_spec
+
+        try:
+            spec = load_spec(args.spec)
+        except SpecError as error:
+            problem = str(error)
+    if problem is None:  # --out created only for a spec that can run
         problem = _check_out(args.out)
     if problem:
         print(f"optimize-joint: {problem}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    from tripodjax.optimize.spec import SpecError, load_spec
-
-    try:
-        spec = load_spec(args.spec)
-    except SpecError as error:
-        print(f"optimize-joint: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
     with warnings.catch_warnings():
         # A non-finite margin plots as a gap; matplotlib's warning about it is no message.

@@ -1,3 +1,3 @@
 """The package's version, written once (pyproject.toml reads it; see CHANGELOG.md)."""
 
-version = "0.1.0"
+version = "0.2.0.dev0"

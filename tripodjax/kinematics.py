@@ -524,9 +524,9 @@ def kinematic_metrics(
             form plus two Newton corrections in plain arithmetic at 8 angles
             per period, interpolated to the grid; over the whole domain
             within 1.3e-5 (irregularity), 5e-6 (delta_pp), 4e-7 (ecc_max),
-            1.1e-6 (gamma_pp), and 12–27× faster than newton as measured
-            in sweeps with the default outputs (see the documentation's "Speed
-            and accuracy" page; one layout at
+            1.1e-6 (gamma_pp), and an order of magnitude faster than newton
+            in sweeps with the default outputs (the documentation's "Speed
+            and accuracy" page gives the measured ratios; one layout at
             a time the call's own overhead dominates);
             ``"closed_form"`` — the closed form alone (see [`tripodjax.solvers`][tripodjax.solvers]).
         throw: raise [`SolverError`][tripodjax.solvers.SolverError] naming the first

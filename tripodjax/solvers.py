@@ -101,10 +101,10 @@ class Analytic:
     (the interpolation's share; at every angle, ``nodes=None``: below 2e-6).
     One correction: irregularity 1.2e-3, delta_pp 3e-4, gamma_pp 3.8e-3,
     ecc_max 1.2e-3; the closed form alone: 4.2 %, 0.6 %, 23 %, 7.3 %.
-    Speed (``python -m tripodjax.bench``): 12–27× newton in float64 with
-    [`sweep`][tripodjax.sweep.sweep]'s default outputs on the 2-core CPUs
-    measured (newton itself solves with no transcendental function); the
-    documentation's "Speed and accuracy" page gives each output's cost.
+    Speed (``python -m tripodjax.bench``): an order of magnitude faster than newton with
+    [`sweep`][tripodjax.sweep.sweep]'s default outputs (newton itself solves with no
+    transcendental function); the documentation's "Speed and accuracy" page gives the
+    measured ratios per dtype, and each output's cost, with the CPU they were measured on.
 
     Every point carries an error estimate (the next Newton step with exact
     sines, relative to the first-order amplitude e(γ0)/|h|; over a revolution
