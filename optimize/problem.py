@@ -928,7 +928,8 @@ def _forces_report(structure, values, x):
     design = full_design(structure, values, x)
     layout = Layout(design["R"], design["l"], design["gamma0_deg"])
     params = friction.GREASE_A.replace(lam=design["lam"], mu_slp=design["mu_slp"])
-    # At least the force model's minimum of angles: a spec's coarser grid would alias its orders.
+    # At least the force model's minimum of angles (the fewest that tell its orders apart); the
+    # spec's own grid otherwise, as its quantities (a constraint's value the same number here).
     n_theta = max(structure.n_theta, MIN_N_THETA_ORDERS)
     sol, rates = revolution(layout, n_theta, structure.fidelity, with_rates=True)
     names = (*FORCE_REPORT_KEYS, "result")

@@ -127,7 +127,7 @@ gaf_model = "stroke"   # "stroke" (no GAF at γ = 0), "printed" (the seed's 3.2.
 # loads.gaf_torque with friction.mu_slp and friction.lam: the quantities lts, lts_ripple,
 # complementary_torque (and its _third_order, _sixth_order), roller_load_ratio and
 # friction_power, and the GAF when friction.gaf_model = "forces".
-speed_rpm = 1000.0         # shaft speed of the running case [rpm] (sets friction_power alone; not 0)
+speed_rpm = 1000.0         # shaft speed, running case [rpm], not 0 (its sign: the sense of rotation)
 mu_trunnion = 0.0          # roller–trunnion sliding friction (0: needle bearings)
 contact_angle_deg = 0.0    # contact angle of the roller on its flank [deg] (0: flat flanks)
 plunge_speed_mm_s = 10.0   # plunge speed of the LTS test [mm/s] (> 0 into the pot, < 0 out; not 0)
@@ -1067,7 +1067,7 @@ def _constraints(table):
 def _check_force_model(structure, values):
     """SpecError where the objective or a constraint takes a GAF or force quantity (each judged
     at loads.gaf_torque) and solver.n_theta is below the minimum of the orders (they would
-    alias), or loads.gaf_torque is 0: the force model's (tripodjax.forces) roller loads over
+    not be told apart), or loads.gaf_torque is 0: the force model's (tripodjax.forces) roller loads over
     T/3R are then 0/0 and its forces 0, Lee's GAF (friction.gaf_model "stroke" or "printed")
     0 whatever the design."""
     from tripodjax.kinematics import MIN_N_THETA_ORDERS
@@ -1077,16 +1077,20 @@ def _check_force_model(structure, values):
         first = next(q for q in (*GAF_QUANTITIES, *FORCE_QUANTITIES) if q in used)
         raise SpecError(
             f"solver.n_theta = {structure.n_theta} is not allowed with {first} in the "
-            f"objective or the constraints: at least {MIN_N_THETA_ORDERS} (the orders 3, 6 and 9 "
-            "would alias)"
+            f"objective or the constraints: at least {MIN_N_THETA_ORDERS} (the fewest that tell "
+            "the orders 3, 6 and 9 apart)"
         )
-    if used and not values["loads"]["gaf_torque"] > 0:
-        forces = used[0] in FORCE_QUANTITIES or structure.gaf_model == "forces"
+    # A term of weight 0 (the default spec's GAF term switched off) judges nothing at the torque.
+    constrained = {q for _, q, _ in structure.constraints}
+    weights = values.get("objective", {})
+    judged = [q for q in used if q in constrained or weights.get(f"w_{q}", 1.0) != 0]
+    if judged and not values["loads"]["gaf_torque"] > 0:
+        forces = judged[0] in FORCE_QUANTITIES or structure.gaf_model == "forces"
         model = "the force model's " if forces else ""
         zero = "its forces 0, the roller loads over T/3R 0/0" if forces else "the GAF is 0"
         raise SpecError(
             f"loads.gaf_torque = {values['loads']['gaf_torque']:g} is not allowed with "
-            f"{model}{used[0]} in the objective or the constraints: > 0 N·m (the torque at "
+            f"{model}{judged[0]} in the objective or the constraints: > 0 N·m (the torque at "
             f"which it is judged; at 0 {zero} whatever the design)"
         )
 

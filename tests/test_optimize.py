@@ -902,3 +902,18 @@ def test_a_force_quantity_spec_without_torque_angles_or_speed_is_refused(text, m
 def test_a_name_the_report_cannot_show_is_refused(text, message):
     with pytest.raises(optimize.SpecError, match=re.escape(message)):
         optimize.parse_spec(text)
+
+
+def test_a_gaf_term_of_weight_zero_needs_no_torque():
+    """The default objective's GAF term switched off (w_gaf_rms = 0) with loads.gaf_torque = 0:
+    accepted (it judges nothing at that torque), a finite objective; a constraint on the GAF
+    still needs the torque."""
+    spec = optimize.parse_spec("[objective]\nw_gaf_rms = 0.0\n[loads]\ngaf_torque = 0.0\n")
+    out = optimize.evaluate(spec, {"R": 26.0, "d_roller": 41.0})
+    assert out["quantities"]["gaf_rms"] == 0.0 and math.isfinite(out["objective"])
+    assert out["result"] == "successful"
+    with pytest.raises(optimize.SpecError, match=re.escape("not allowed with gaf_rms in the")):
+        optimize.parse_spec(
+            "[objective]\nw_gaf_rms = 0.0\n[loads]\ngaf_torque = 0.0\n"
+            "[constraints]\nmax_gaf_rms = 900.0\n"
+        )

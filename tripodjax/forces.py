@@ -741,9 +741,12 @@ class ForceResult:
             ``outside_validity`` where a roller's N_k < 0 at some angle (lift-off or
             self-locking friction) or a traced input lies outside its domain.
 
-    The RMS, peak and order amplitudes and the steady couple are norms, ∝ |T|: at T = 0 their
-    derivative w.r.t. the torque is that of |T| at its kink; 0 is returned there (finite, a
-    subgradient), the exact slope q/T everywhere else.
+    The RMS, peak and order amplitudes and the steady couple are norms of series that vanish at
+    T = 0 and at γ0 = 0 (the couple ∝ T tan(γ/2)): there a norm has a kink, its one-sided slope
+    (the steady couple's 150 N·m/rad in γ0 for case N's R and l at 1000 N·m) not a linear function
+    of the direction, which reverse mode needs. 0 is returned there (finite, a subgradient), the
+    exact derivative everywhere else (q/T w.r.t. the torque). An optimiser's bound at γ0 = 0 sees
+    a zero slope of these quantities there.
     """
 
     theta: jax.Array
