@@ -140,8 +140,61 @@ def test_the_spec_reference_gives_each_numbers_allowed_range():
 
     page = _hooks().spec_reference_markdown(optimize.DEFAULT_SPEC_TOML)
     assert "| key | default | unit | allowed | meaning |" in page
-    assert "| `tyre_radius_m` | `0.30773` | – | ≥ 0.1 m and ≤ 2 m |" in page
+    assert "| `tyre_radius_m` | `0.30773` | m | ≥ 0.1 m and ≤ 2 m |" in page
     assert "| `C_s` | `1.2` | – | ≥ 1 and ≤ 10 |" in page
     assert "| `n_rollers` | `3` | – | an integer from 1 to 12 |" in page
     assert "| `R` | `[15.0, 40.0]` | mm | [lo, hi], lo < hi, each ≥ 1 mm and ≤ 200 mm |" in page
     assert '| `axle` | `"rear"` | – | – |' in page
+
+
+def test_the_spec_reference_shows_every_key_its_comments_whole_and_one_unit():
+    """Every key a section accepts has a row (the optional ones "not set"); a comment's
+    placeholders (``<q>``) show rather than vanish as HTML tags; a comment continued on the
+    next line stays with its key; a row's unit is the one its allowed range gives."""
+    from tripodjax import optimize
+
+    page = _hooks().spec_reference_markdown(optimize.DEFAULT_SPEC_TOML)
+    rows = {}
+    section = None
+    for line in page.splitlines():
+        if line.startswith("### "):
+            section = line.strip("#` []")
+        elif line.startswith("| `"):
+            key, default, unit, allowed, meaning = line[2:-2].split(" | ")
+            rows[f"{section}.{key.strip('`')}"] = (default, unit, allowed, meaning)
+    for key in ("loads.M_max", "life.torque", "life.speed", "life.vehicle_speed", "life.share"):
+        assert rows[key][0].startswith("not set"), key
+    assert rows["loads.M_max"][1:3] == ("N·m", "≥ 1 N·m and ≤ 50000 N·m")
+    assert rows["life.vehicle_speed"][1:3] == ("km/h", "≥ 0 km/h and ≤ 500 km/h")
+    assert rows["life.spectrum_file"][0].startswith("not set")
+    assert "vehicle_speed_kmh" in rows["life.spectrum_file"][3]
+    # The [uncertainty] examples are TOML, not keys of the section.
+    assert not any(key.startswith("uncertainty.") for key in rows)
+    assert 'R = { distribution = "normal", sd = 0.01 }' in page
+    assert "Σ w_&lt;q&gt; · &lt;q&gt; / &lt;q&gt;_ref" in page
+    assert '"shaft.&lt;list&gt;[&lt;section&gt;]"' in page
+    assert "max_&lt;q&gt; / min_&lt;q&gt;" in page
+    assert not re.search(r"<(q|list|section)>", page)
+    assert rows["outboard.reading"][3].endswith(
+        '"workbook" (the sheet\'s μν table, km = hours × the revolution-weighted mean vehicle '
+        "speed; docs/physics.md)"
+    )
+    assert "μν table" not in page.split("### `[outboard]`")[1].split("| key |")[0]
+    named = {
+        "vehicle.mass_kg": "kg",
+        "vehicle.wheelbase_m": "m",
+        "vehicle.engine_torque_Nm": "N·m",
+        "vehicle.engine_speed_rpm": "rpm",
+        "vehicle.modes.use_T_max_pct": "%",
+        "vehicle.load_transfer_per_ratio_N": "N",
+        "shaft.outer_diameter_mm": "mm",
+        "shaft.core_uts_MPa": "MPa",
+        "layout.gamma0_deg": "°",
+        "hertz.C_s": "–",
+    }
+    assert {key: rows[key][1] for key in named} == named
+    for key, (_, unit, allowed, _) in rows.items():
+        if unit != "–" and allowed[:1] in "≥>[":
+            assert unit in allowed, key
+        rest = allowed.replace(unit, "") if unit != "–" else allowed
+        assert not re.search(r"\d ?(mm|m|kg|N|MPa|rpm|km|%|°)", rest), key
