@@ -239,8 +239,11 @@ max_outer = 25         # augmented-Lagrangian outer iterations
 inner_steps = 30       # L-BFGS iterations per outer iteration
 tolerance = 1e-5       # KKT residual (projected gradient, feasibility, complementarity)
 """
+"""The embedded default design specification, a TOML text: every key of the file with its
+default, its unit (in the key's name or its comment) and its meaning; the keys a file may add
+are commented out. A spec file need only hold the keys it changes (`parse_spec`, `load_spec`);
+docs/cli.md renders it as the spec reference."""
 
-# Quantity → (unit, what). Every one can be an objective term or a constraint.
 QUANTITIES = {
     "irregularity": ("–", "transmission irregularity (Ω2max − Ω2min)/Ω1 (§2.11.3)"),
     "eccentricity": ("mm", "maximum spider-centre eccentricity over a revolution (2.5.9)"),
@@ -318,6 +321,9 @@ QUANTITIES = {
         "the outboard joint's life under [outboard.conditions] (required ≥ life.required_km)",
     ),
 }
+"""Every quantity of a design: name → (unit, what it is). Each can be an objective term
+(``w_<q>`` with its reference ``<q>_ref``, in the quantity's unit) or a constraint (``max_<q>``,
+``min_<q>``); `evaluate` computes them."""
 KINEMATIC_QUANTITIES = ("irregularity", "eccentricity", "gamma_ripple", "roller_stroke")
 GAF_QUANTITIES = ("gaf_rms", "gaf_peak", "gaf_third_order")
 # Quantity → its name in tripodjax.forces (the GAF's too when friction.gaf_model = "forces").
@@ -473,9 +479,6 @@ OBJECTIVE_WEIGHT = Range(None, None)
 OBJECTIVE_REFERENCE = Range(0.0, None, low_open=True)
 CONSTRAINT_LIMIT = Range(0.0, None, low_open=True)
 
-# Design variable → (section, its value's key inside (γ0 in rad), unit, domain (low, high, low
-# open): its spec number's Range). Its key in the file is the variable's own name (gamma0_deg in
-# degrees); report keys add the unit suffix.
 VARIABLES = {
     "R": ("design", "R", "mm", RANGES["design.R"].domain),
     "d_roller": ("design", "d_roller", "mm", RANGES["design.d_roller"].domain),
@@ -485,6 +488,11 @@ VARIABLES = {
     "lam": ("friction", "lam", "–", RANGES["friction.lam"].domain),
     "mu_slp": ("friction", "mu_slp", "–", RANGES["friction.mu_slp"].domain),
 }
+"""The design variables, free when ``[bounds]`` gives them an interval: name → (section, the
+key of its value inside that section (``gamma0``, in rad), unit, domain (low, high, low open):
+its spec number's `Range`). Its key in the file is its name (``gamma0_deg`` in degrees); the
+report's keys add the unit suffix (``R_mm``). A ``[shaft]`` entry is free too, as
+``shaft.<list>[<section>]`` [mm] (`SHAFT_VARIABLES`)."""
 # A [shaft] entry as a design variable: "shaft.<list>[<section name>]" [mm], one of these lists.
 SHAFT_VARIABLES = (
     "outer_diameter_mm",

@@ -198,3 +198,51 @@ def test_the_spec_reference_shows_every_key_its_comments_whole_and_one_unit():
             assert unit in allowed, key
         rest = allowed.replace(unit, "") if unit != "–" else allowed
         assert not re.search(r"\d ?(mm|m|kg|N|MPa|rpm|km|%|°)", rest), key
+
+
+# Public constants the docs name as entry points: module → names.
+API_CONSTANTS = {
+    "tripodjax.catalogue": ("GE", "GI"),
+    "tripodjax.friction": ("GREASE_A", "GREASE_B", "DRY"),
+    "tripodjax.layout": ("TABLE_2_1",),
+    "tripodjax.optimize.spec": ("QUANTITIES", "VARIABLES", "DEFAULT_SPEC_TOML"),
+    "tripodjax.optimize.uncertainty": ("DEFAULT_TOLERANCES_TOML",),
+}
+
+
+def _rendered_members(pages):
+    """module → names the API pages filter out of its ``::: module`` block, and the objects
+    that a ``::: module.NAME`` block renders on its own."""
+    import yaml
+
+    excluded, alone = {}, set()
+    for page in pages:
+        text = page.read_text(encoding="utf-8")
+        for m in re.finditer(r"^::: ([\w.]+)\n((?:    .*\n?)*)", text, re.M):
+            options = (yaml.safe_load(textwrap.dedent(m.group(2))) or {}).get("options", {})
+            if options.get("members") is False:
+                continue
+            alone.add(m.group(1))
+            excluded[m.group(1)] = [f[1:] for f in options.get("filters", []) if f[0] == "!"]
+    return excluded, alone
+
+
+def test_the_api_reference_documents_the_public_constants():
+    """Each constant has an attribute docstring (what griffe reads; mkdocstrings renders no
+    attribute without one) and its API page does not filter it out."""
+    griffe = pytest.importorskip("griffe")
+    packages = {
+        name: griffe.load(name, search_paths=[str(ROOT)], resolve_aliases=False)
+        for name in ("tripodjax", "optimize")
+    }
+    excluded, alone = _rendered_members((ROOT / "docs" / "api").glob("*.md"))
+    for module, names in API_CONSTANTS.items():
+        path = module.removeprefix("tripodjax.optimize.").removeprefix("tripodjax.")
+        package = packages["optimize" if module.startswith("tripodjax.optimize.") else "tripodjax"]
+        for name in names:
+            docstring = package[f"{path}.{name}"].docstring
+            assert docstring and len(docstring.value) > 40, f"{module}.{name} has no docstring"
+            shown = f"{module}.{name}" in alone or (
+                module in alone and not any(re.search(f, name) for f in excluded[module])
+            )
+            assert shown, f"{module}.{name} is not rendered by docs/api/*.md"
