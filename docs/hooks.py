@@ -420,14 +420,15 @@ def spec_reference_markdown(text: str) -> str:
     return "\n".join(out)
 
 
-def _help(module: str) -> str:
+def _help(module: str, *args: str) -> str:
+    """A command's ``--help`` (after ``args``, e.g. a mode's flag) as a text block."""
     main = importlib.import_module(module).main
     buffer = io.StringIO()
     columns = os.environ.get("COLUMNS")
     os.environ["COLUMNS"] = "96"
     try:
         with contextlib.redirect_stdout(buffer), contextlib.suppress(SystemExit):
-            main(["--help"])
+            main([*args, "--help"])
     finally:
         if columns is None:
             os.environ.pop("COLUMNS")
@@ -821,6 +822,7 @@ def latency_tables(figures: dict) -> dict[str, list[str]]:
                 f"{e['over_floor']:.1f}",
                 f"{e['import_s']:.1f}",
                 f"{e['trace_s']:.1f}",
+                f"{e['lower_s']:.1f}",
                 f"{e['compile_s']:.1f}",
                 f"{e['run_s']:.1f}",
                 str(len(e["programs"])),
@@ -838,6 +840,7 @@ def latency_tables(figures: dict) -> dict[str, list[str]]:
                     "× floor",
                     "import s",
                     "trace s",
+                    "lowering s",
                     "compile s",
                     "run s",
                     "programs",
@@ -898,6 +901,16 @@ def bench_markdown(markdown: str) -> str:
 # ---------------------------------------------------------------------------------------------
 
 
+# ``<!-- help MODULE ARGS -->`` markers: the command's ``--help`` after ARGS.
+HELP_MARKERS = (
+    ("tripodjax.optimize.cli", ()),
+    ("tripodjax.optimize.compare", ()),
+    ("tripodjax.__main__", ()),
+    ("tripodjax.bench", ()),
+    ("tripodjax.bench", ("--latency",)),
+)
+
+
 def on_page_markdown(markdown, page, config, files):
     if "<!-- spec-reference -->" in markdown:
         from tripodjax.optimize import DEFAULT_SPEC_TOML
@@ -905,11 +918,10 @@ def on_page_markdown(markdown, page, config, files):
         markdown = markdown.replace(
             "<!-- spec-reference -->", spec_reference_markdown(DEFAULT_SPEC_TOML)
         )
-    modules = ("tripodjax.optimize.cli", "tripodjax.optimize.compare")
-    for module in (*modules, "tripodjax.__main__", "tripodjax.bench"):
-        marker = f"<!-- help {module} -->"
+    for module, args in HELP_MARKERS:
+        marker = f"<!-- help {' '.join((module, *args))} -->"
         if marker in markdown:
-            markdown = markdown.replace(marker, _help(module))
+            markdown = markdown.replace(marker, _help(module, *args))
     if "<!-- report-example -->" in markdown:
         markdown = markdown.replace("<!-- report-example -->", report_example_markdown(files))
     if "<!-- equation-map -->" in markdown:

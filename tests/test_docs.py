@@ -246,3 +246,30 @@ def test_the_api_reference_documents_the_public_constants():
                 module in alone and not any(re.search(f, name) for f in excluded[module])
             )
             assert shown, f"{module}.{name} is not rendered by docs/api/*.md"
+
+
+def test_the_latency_table_splits_the_time_as_the_page_says_and_its_options_are_documented():
+    """The latency table has the lowering column the page's text names (from each entry's
+    ``lower_s``); every option of ``--latency --help`` is named on the speed page, and
+    docs/cli.md renders that help as it renders the bench's."""
+    hooks = _hooks()
+    figures = json.loads((ROOT / "docs" / "bench" / hooks.LATENCY_BENCH).read_text())
+    table = hooks.latency_tables(figures)["latency"]
+    head = [c.strip() for c in table[0].strip("|").split("|")]
+    for phase in ("import", "trace", "lowering", "compile", "run"):
+        assert f"{phase} s" in head
+    rows = {line.split(" | ")[0].lstrip("| "): line.split(" | ") for line in table[2:] if line}
+    for entry in figures["entries"].values():
+        assert rows[entry["what"]][head.index("lowering s")] == f"{entry['lower_s']:.1f}"
+    help_text = hooks._help("tripodjax.bench", "--latency")
+    options = set(re.findall(r"^\s+(--[\w-]+)", help_text, re.M)) - {"--help"}
+    assert {"--entries", "--repeats", "--gradient-layouts", "--json"} <= options
+    page = (ROOT / "docs" / "speed-accuracy.md").read_text(encoding="utf-8")
+    latency = page.split("## Compile latency")[1].split("\n## ")[0]
+    assert all(f"`{option}" in latency for option in options), options
+    cli = (ROOT / "docs" / "cli.md").read_text(encoding="utf-8")
+    assert "<!-- help tripodjax.bench --latency -->" in cli
+    assert (
+        hooks.on_page_markdown("<!-- help tripodjax.bench --latency -->", None, None, None)
+        == help_text
+    )
