@@ -273,3 +273,23 @@ def test_the_latency_table_splits_the_time_as_the_page_says_and_its_options_are_
         hooks.on_page_markdown("<!-- help tripodjax.bench --latency -->", None, None, None)
         == help_text
     )
+
+
+def test_the_development_page_names_what_the_minimum_versions_check_pins_and_runs():
+    """docs/development.md's "Minimum versions" names every lower bound that .ci/run pins
+    (pyproject.toml's dependencies, bench and report extras) and every test module of its fast
+    subset."""
+    import tomllib
+
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"]
+    extras = project["optional-dependencies"]
+    section = (ROOT / "docs" / "development.md").read_text(encoding="utf-8")
+    section = " ".join(section.split("## Minimum versions")[1].split("\n## ")[0].split()).lower()
+    for requirement in project["dependencies"] + extras["bench"] + extras["report"]:
+        name, low = re.fullmatch(r"([\w.-]+)>=([\w.]+)", requirement.replace(" ", "")).groups()
+        assert f"{name.lower()} {low}" in section, requirement
+    ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8")
+    subset = ci.split('step "minimum versions: fast subset of the tests"')[1].split("step ")[0]
+    modules = set(re.findall(r"tests/(test_\w+)\.py", subset))
+    assert {"test_optimize", "test_report_html"} <= modules
+    assert all(f"tests/{m}.py" in section for m in modules), modules
