@@ -26,8 +26,10 @@
 from __future__ import annotations
 
 import contextlib
+import html
 import importlib
 import io
+import itertools
 import json
 import logging
 import os
@@ -255,34 +257,52 @@ def _split_comment(line: str) -> tuple[str, str]:
 
 _UNIT = re.compile(r"\[([^\[\]]{1,16})\]")
 _KEY = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)\s*=\s*(.*)$")
+_EXAMPLE = re.compile(r"^#\s{2,}\S")  # "#   R = { … }": an example of a section's notes
+_SAME_UNIT = {"deg": "°"}  # a comment's unit → the unit of its key's range (spec.RANGES)
 
 
 def spec_entries(text: str):
-    """Sections of a spec TOML as (section, notes, rows); rows are (key, default, unit, meaning).
+    """Sections of a spec TOML as (section, notes, rows); rows are (key, default, unit, meaning,
+    optional), notes the section's comment lines (an indented example line, ``#   x = …``, keeps
+    four spaces of indentation).
 
-    A commented-out assignment (`# key = value  # meaning`) is an optional key, not set by default.
+    A commented-out assignment (`# key = value  # meaning`) is an optional key, not set by
+    default. A comment line indented under a key's line continues that key's comment. The unit
+    is the one in the key's comment (``[mm]``), "–" for none; `spec_reference_markdown` checks
+    it against the key's range.
     """
     sections = []
-    notes, rows = [], []
+    notes: list[str] = []
+    rows: list[list] = []
     section = None
+    last = None  # the row an indented comment line continues
     lines = iter(text.splitlines())
     for raw in lines:
         line = raw.strip()
         if not line:
+            last = None
             continue
         header = re.match(r"^\[([^\[\]]+)\]\s*(#.*)?$", line)
         if header:
             if section is not None or rows or notes:
                 sections.append((section, notes, rows))
-            section, notes, rows = header.group(1).strip(), [], []
+            section, notes, rows, last = header.group(1).strip(), [], [], None
             continue
         optional = False
         if line.startswith("#"):
-            body = line.lstrip("#").strip()
+            body = line[1:].strip()
+            if raw[:1].isspace() and last is not None:  # the comment of the row above, continued
+                last[3] = f"{last[3]} {body}"
+                continue
+            if _EXAMPLE.match(line):
+                notes.append("    " + body)
+                last = None
+                continue
             if _KEY.match(body) and section is not None:
                 line, optional = body, True
             else:
                 notes.append(body)
+                last = None
                 continue
         code, comment = _split_comment(line)
         match = _KEY.match(code)
@@ -293,23 +313,24 @@ def spec_entries(text: str):
             more, extra = _split_comment(next(lines).strip())
             value += " " + more
             comment = " ".join(c for c in (comment, extra) if c)
-        unit = _UNIT.search(comment)
-        meaning = _UNIT.sub("", comment, count=1).strip() if unit else comment
-        meaning = re.sub(r"\s+", " ", meaning).strip(" ,;")
-        if unit:
-            unit = unit.group(1)
-        elif key.endswith("_deg"):
-            unit = "deg"
-        else:
-            unit = "–"
-        if optional:
-            value = f"not set (e.g. `{value}`)"
-            meaning = f"optional: {meaning}" if meaning else "optional"
-        else:
-            value = f"`{value}`"
-        rows.append((key, value, unit, meaning, optional))
+        last = [key, value, None, comment, optional]
+        rows.append(last)
     sections.append((section, notes, rows))
-    return sections
+    out = []
+    for section, notes, rows in sections:
+        entries = []
+        for key, value, _, comment, optional in rows:
+            unit = _UNIT.search(comment)
+            meaning = _UNIT.sub("", comment, count=1) if unit else comment
+            meaning = re.sub(r"\s+", " ", meaning).strip(" ,;")
+            if optional:
+                value = f"not set (e.g. `{value}`)"
+                meaning = f"optional: {meaning}" if meaning else "optional"
+            else:
+                value = f"`{value}`"
+            entries.append((key, value, unit.group(1) if unit else "–", meaning, optional))
+        out.append((section, notes, entries))
+    return out
 
 
 def _leaves_with_values(table, prefix=()):
@@ -326,13 +347,30 @@ def _is_number(value):
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
+def _text(markdown: str) -> str:
+    """A comment's text as Markdown that shows it: ``<q>`` stays ``<q>``, not an HTML tag."""
+    return html.escape(markdown, quote=False).replace("|", "\\|")
+
+
+def _notes_markdown(notes: list[str]) -> list[str]:
+    """A section's notes: prose lines as one paragraph each run, example lines as TOML code."""
+    out: list[str] = []
+    for example, group in itertools.groupby(notes, key=lambda n: n.startswith("    ")):
+        group = list(group)
+        if example:
+            out += ["```toml", *(n[4:] for n in group), "```", ""]
+        else:
+            out += [_text(" ".join(group)), ""]
+    return out
+
+
 def spec_reference_markdown(text: str) -> str:
     try:
         import tomllib
     except ModuleNotFoundError:  # Python 3.10
         import tomli as tomllib
 
-    from tripodjax.optimize.spec import allowed_text
+    from tripodjax.optimize.spec import accepted_keys, allowed_text, unit_text
 
     sections = spec_entries(text)
     listed = {f"{s}.{r[0]}" for s, _, rows in sections for r in rows if not r[4]}
@@ -341,6 +379,17 @@ def spec_reference_markdown(text: str) -> str:
         raise ValueError(
             f"spec reference out of step with DEFAULT_SPEC_TOML: {sorted(listed ^ parsed)}"
         )
+    names = [s for s, _, _ in sections if s is not None]
+    for section, _, rows in sections:  # a row for every key a section accepts (spec.py)
+        accepted = section and accepted_keys(tuple(section.split(".")))
+        if accepted:
+            tables = {s.rpartition(".")[2] for s in names if s.rpartition(".")[0] == section}
+            shown = {r[0] for r in rows} | tables
+            if shown != set(accepted):
+                raise ValueError(
+                    f"spec reference: [{section}] accepts {sorted(accepted)}, rows for "
+                    f"{sorted(shown)} (a key the default leaves out: a commented-out line)"
+                )
     numbers = {k for k, v in _leaves_with_values(tomllib.loads(text)) if _is_number(v)}
     unranged = sorted(k for k in numbers if allowed_text(k) is None)
     if unranged:  # every number of the spec has its range in spec.RANGES
@@ -348,32 +397,38 @@ def spec_reference_markdown(text: str) -> str:
     out = []
     for section, notes, rows in sections:
         if section is None:
-            out += [" ".join(notes), ""]
+            out += _notes_markdown(notes)
             continue
         out += [f"### `[{section}]`", ""]
-        if notes:
-            out += [" ".join(notes), ""]
+        out += _notes_markdown(notes)
         if rows:
             out += [
                 "| key | default | unit | allowed | meaning |",
                 "| --- | --- | --- | --- | --- |",
             ]
-            for key, value, unit, meaning, _ in rows:
+            for key, value, written, meaning, _ in rows:
+                unit = unit_text(f"{section}.{key}")  # its range's, as the allowed column's
+                if written != "–" and _SAME_UNIT.get(written, written) != unit:
+                    raise ValueError(
+                        f"spec reference: {section}.{key}'s comment says [{written}], its unit "
+                        f"is {unit} (spec.unit_text)"
+                    )
                 allowed = allowed_text(f"{section}.{key}") or "–"
-                cells = [c.replace("|", "\\|") for c in (value, unit, allowed, meaning)]
+                cells = [value.replace("|", "\\|"), unit, allowed, _text(meaning)]
                 out.append(f"| `{key}` | " + " | ".join(cells) + " |")
             out.append("")
     return "\n".join(out)
 
 
-def _help(module: str) -> str:
+def _help(module: str, *args: str) -> str:
+    """A command's ``--help`` (after ``args``, e.g. a mode's flag) as a text block."""
     main = importlib.import_module(module).main
     buffer = io.StringIO()
     columns = os.environ.get("COLUMNS")
     os.environ["COLUMNS"] = "96"
     try:
         with contextlib.redirect_stdout(buffer), contextlib.suppress(SystemExit):
-            main(["--help"])
+            main([*args, "--help"])
     finally:
         if columns is None:
             os.environ.pop("COLUMNS")
@@ -767,6 +822,7 @@ def latency_tables(figures: dict) -> dict[str, list[str]]:
                 f"{e['over_floor']:.1f}",
                 f"{e['import_s']:.1f}",
                 f"{e['trace_s']:.1f}",
+                f"{e['lower_s']:.1f}",
                 f"{e['compile_s']:.1f}",
                 f"{e['run_s']:.1f}",
                 str(len(e["programs"])),
@@ -784,6 +840,7 @@ def latency_tables(figures: dict) -> dict[str, list[str]]:
                     "× floor",
                     "import s",
                     "trace s",
+                    "lowering s",
                     "compile s",
                     "run s",
                     "programs",
@@ -844,6 +901,16 @@ def bench_markdown(markdown: str) -> str:
 # ---------------------------------------------------------------------------------------------
 
 
+# ``<!-- help MODULE ARGS -->`` markers: the command's ``--help`` after ARGS.
+HELP_MARKERS = (
+    ("tripodjax.optimize.cli", ()),
+    ("tripodjax.optimize.compare", ()),
+    ("tripodjax.__main__", ()),
+    ("tripodjax.bench", ()),
+    ("tripodjax.bench", ("--latency",)),
+)
+
+
 def on_page_markdown(markdown, page, config, files):
     if "<!-- spec-reference -->" in markdown:
         from tripodjax.optimize import DEFAULT_SPEC_TOML
@@ -851,11 +918,10 @@ def on_page_markdown(markdown, page, config, files):
         markdown = markdown.replace(
             "<!-- spec-reference -->", spec_reference_markdown(DEFAULT_SPEC_TOML)
         )
-    modules = ("tripodjax.optimize.cli", "tripodjax.optimize.compare")
-    for module in (*modules, "tripodjax.__main__", "tripodjax.bench"):
-        marker = f"<!-- help {module} -->"
+    for module, args in HELP_MARKERS:
+        marker = f"<!-- help {' '.join((module, *args))} -->"
         if marker in markdown:
-            markdown = markdown.replace(marker, _help(module))
+            markdown = markdown.replace(marker, _help(module, *args))
     if "<!-- report-example -->" in markdown:
         markdown = markdown.replace("<!-- report-example -->", report_example_markdown(files))
     if "<!-- equation-map -->" in markdown:

@@ -13,6 +13,7 @@ with one line naming the key, the value and what is allowed.
 
 import copy
 import dataclasses
+import functools
 import json
 import math
 import os
@@ -54,7 +55,8 @@ gamma0_deg = 20.0      # layout articulation angle [deg]
 
 [loads]
 # M_max, the largest forward torque on the shaft, comes from [vehicle] (its adhesion-limited
-# first-gear torque, 1154 N·m here); give loads.M_max [N·m] instead to set it yourself.
+# first-gear torque, 1154 N·m here); give loads.M_max instead to set it yourself.
+# M_max = 1154.0       # the largest forward torque on the shaft [N·m] (when absent: from [vehicle])
 shock_factor = 1.1     # shock factor: in the vehicle's torques, and the static check at shock_factor · M_max
 gaf_torque = 1000.0    # torque at which GAF is judged [N·m] (the seed's GAF example, §3.2)
 
@@ -79,9 +81,9 @@ tyre_radius_m = 0.30773        # static loaded radius (printed 0.308; the sheet'
 adhesion = 0.9                 # tyre–road friction coefficient
 rear_torque_share = 1.0        # engine torque to the rear axle: 1 rear-, 0 front-wheel drive, between AWD
 differential_locking = 1.0     # one shaft takes at most (1 + this)/2 of its axle's torque (workbook 100 %)
-# Engine torque and speed at mean torque, maximum torque, maximum power, and the engine brake.
-engine_torque_Nm = [555.0, 555.0, 517.4, 50.0]
-engine_speed_rpm = [3000.0, 3000.0, 5500.0, 3000.0]
+engine_torque_Nm = [555.0, 555.0, 517.4, 50.0]       # engine torque at mean torque, maximum
+                                                     # torque, maximum power, and the engine brake
+engine_speed_rpm = [3000.0, 3000.0, 5500.0, 3000.0]  # engine speed at the same four conditions
 load_transfer_per_ratio_N = 67.45  # wheel-load transfer per unit overall ratio (fitted to the sheet)
 reverse_load_transfer_N = 627.0    # wheel-load transfer in reverse (the sheet)
 
@@ -103,10 +105,15 @@ use_brake_pct = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
 [life]
 required_km = 100000.0 # required life [km] (workbook)
 angle_law = "workbook" # life against working angle: "workbook" (fitted to fig. 4.3.10) or "seed"
-# The load spectrum comes from [vehicle]. To give it yourself: torque [N·m], speed [rpm],
-# vehicle_speed [km/h] and share (of the running time) lists, or spectrum_file = "x.csv"
-# (columns torque_Nm, speed_rpm, vehicle_speed_kmh and revolutions or hours; relative to
-# the spec's folder).
+# The load spectrum comes from [vehicle]. To give it yourself: the four lists torque, speed,
+# vehicle_speed and share (one entry per load case), or spectrum_file.
+# torque = [1154.0, 350.0]     # shaft torque of each load case [N·m]
+# speed = [230.0, 700.0]       # shaft speed of each load case [rpm]
+# vehicle_speed = [28.0, 90.0] # vehicle speed of each load case [km/h]
+# share = [0.55, 0.45]         # share of the running time of each load case (summing to 1)
+# spectrum_file = "x.csv"      # the cases as a CSV file (columns torque_Nm, speed_rpm,
+                               # vehicle_speed_kmh and revolutions or hours), relative to the
+                               # spec's folder
 
 [life.conditions]
 # The workbook's five working conditions (fig. 4.3.10): angles and shares of the mileage,
@@ -212,7 +219,7 @@ max_R_over_d = 0.83
 
 [uncertainty]
 # Distributions on any spec number (design variables: a tolerance around the design), e.g.
-#   R = { distribution = "normal", sd = 0.01 }                      [mm]
+#   R = { distribution = "normal", sd = 0.01 }                      # [mm]
 #   conformity = { distribution = "uniform", low = 1.002, high = 1.008 }
 #   hertz.P_d = { distribution = "normal", cov = 0.05 }
 #   correlation = [["R", "d_roller", 0.3]]
@@ -232,8 +239,11 @@ max_outer = 25         # augmented-Lagrangian outer iterations
 inner_steps = 30       # L-BFGS iterations per outer iteration
 tolerance = 1e-5       # KKT residual (projected gradient, feasibility, complementarity)
 """
+"""The embedded default design specification, a TOML text: every key of the file with its
+default, its unit (in the key's name or its comment) and its meaning; the keys a file may add
+are commented out. A spec file need only hold the keys it changes (`parse_spec`, `load_spec`);
+docs/cli.md renders it as the spec reference."""
 
-# Quantity → (unit, what). Every one can be an objective term or a constraint.
 QUANTITIES = {
     "irregularity": ("–", "transmission irregularity (Ω2max − Ω2min)/Ω1 (§2.11.3)"),
     "eccentricity": ("mm", "maximum spider-centre eccentricity over a revolution (2.5.9)"),
@@ -311,6 +321,9 @@ QUANTITIES = {
         "the outboard joint's life under [outboard.conditions] (required ≥ life.required_km)",
     ),
 }
+"""Every quantity of a design: name → (unit, what it is). Each can be an objective term
+(``w_<q>`` with its reference ``<q>_ref``, in the quantity's unit) or a constraint (``max_<q>``,
+``min_<q>``); `evaluate` computes them."""
 KINEMATIC_QUANTITIES = ("irregularity", "eccentricity", "gamma_ripple", "roller_stroke")
 GAF_QUANTITIES = ("gaf_rms", "gaf_peak", "gaf_third_order")
 # Quantity → its name in tripodjax.forces (the GAF's too when friction.gaf_model = "forces").
@@ -466,9 +479,6 @@ OBJECTIVE_WEIGHT = Range(None, None)
 OBJECTIVE_REFERENCE = Range(0.0, None, low_open=True)
 CONSTRAINT_LIMIT = Range(0.0, None, low_open=True)
 
-# Design variable → (section, its value's key inside (γ0 in rad), unit, domain (low, high, low
-# open): its spec number's Range). Its key in the file is the variable's own name (gamma0_deg in
-# degrees); report keys add the unit suffix.
 VARIABLES = {
     "R": ("design", "R", "mm", RANGES["design.R"].domain),
     "d_roller": ("design", "d_roller", "mm", RANGES["design.d_roller"].domain),
@@ -478,6 +488,11 @@ VARIABLES = {
     "lam": ("friction", "lam", "–", RANGES["friction.lam"].domain),
     "mu_slp": ("friction", "mu_slp", "–", RANGES["friction.mu_slp"].domain),
 }
+"""The design variables, free when ``[bounds]`` gives them an interval: name → (section, the
+key of its value inside that section (``gamma0``, in rad), unit, domain (low, high, low open):
+its spec number's `Range`). Its key in the file is its name (``gamma0_deg`` in degrees); the
+report's keys add the unit suffix (``R_mm``). A ``[shaft]`` entry is free too, as
+``shaft.<list>[<section>]`` [mm] (`SHAFT_VARIABLES`)."""
 # A [shaft] entry as a design variable: "shaft.<list>[<section name>]" [mm], one of these lists.
 SHAFT_VARIABLES = (
     "outer_diameter_mm",
@@ -559,8 +574,18 @@ LEGACY_OBJECTIVE = {
 
 
 LIFE_LISTS = ("torque", "speed", "vehicle_speed", "share")
-# Keys the default leaves out: giving one replaces what [vehicle] would give.
-OPTIONAL_KEYS = {"loads.M_max", "life.spectrum_file", *(f"life.{k}" for k in LIFE_LISTS)}
+# Keys the default leaves out (commented out in DEFAULT_SPEC_TOML): giving one replaces what
+# [vehicle] (or, for mu_slp, friction.grease) would give.
+OPTIONAL_KEYS = {
+    "loads.M_max",
+    "friction.mu_slp",
+    "life.spectrum_file",
+    *(f"life.{k}" for k in LIFE_LISTS),
+}
+# Sections whose keys the file names freely: [objective] and [constraints] (any quantity q),
+# [bounds] (any design variable), [uncertainty] (any spec number); their keys are checked
+# when the section is read.
+FREE_SECTIONS = ("objective", "constraints", "bounds", "uncertainty")
 VEHICLE_NUMBERS = (  # the [vehicle] section's single numbers (RANGES)
     "mass_kg",
     "front_share",
@@ -576,6 +601,43 @@ VEHICLE_NUMBERS = (  # the [vehicle] section's single numbers (RANGES)
 MAX_GEARS = 11
 
 
+@functools.cache
+def accepted_keys(path: tuple[str, ...] = ()) -> tuple[str, ...] | None:
+    """The keys the spec's table at ``path`` accepts, sorted: the default spec's and the
+    optional ones (OPTIONAL_KEYS); the sections at ``()``. None inside a section that names its
+    keys freely (FREE_SECTIONS) and for a ``path`` that is no table of the default spec. The one
+    list of what a table accepts: the parser's check and its "allowed here" read it."""
+    if path and path[0] in FREE_SECTIONS:
+        return None
+    table = tomllib.loads(DEFAULT_SPEC_TOML)
+    for part in path:
+        table = table.get(part)
+        if not isinstance(table, dict):
+            return None
+    prefix = ".".join(path)
+    optional = {k.rpartition(".")[2] for k in OPTIONAL_KEYS if k.rpartition(".")[0] == prefix}
+    return tuple(sorted(set(table) | optional))
+
+
+def unit_text(key: str) -> str:
+    """The unit of a spec key in the file (``section.key``; a list's entries each), "–" for
+    none: the unit of its allowed range (RANGES), of its design variable's in [bounds], of its
+    quantity's in [objective] and [constraints] (a weight is dimensionless). The spec
+    reference of the docs shows it beside ``allowed_text``, so the two agree."""
+    section, _, name = key.rpartition(".")
+    if key in RANGES:
+        unit = RANGES[key].unit
+    elif section == "bounds" and (name in VARIABLES or shaft_variable(name)):
+        unit = variable_range(name).unit
+    elif section == "objective" and name.endswith("_ref") and name[:-4] in QUANTITIES:
+        unit = quantity_unit(name[:-4])
+    elif section == "constraints" and name[:4] in ("max_", "min_") and name[4:] in QUANTITIES:
+        unit = quantity_unit(name[4:])
+    else:
+        unit = ""
+    return unit.strip() or "–"
+
+
 def allowed_text(key: str) -> str | None:
     """What the file allows for a number of the spec, in words (the spec reference of the docs
     shows it): ``"≥ 1 mm and ≤ 200 mm"`` for ``"design.R"``; None for a key that is no number."""
@@ -585,10 +647,12 @@ def allowed_text(key: str) -> str | None:
     elif section == "solver" and name in INTEGER_LIMITS or key in COUNT_LIMITS:
         low, high, extra = INTEGER_LIMITS[name] if section == "solver" else COUNT_LIMITS[key]
         return f"an integer from {low} to {high}" + (f", {extra}" if extra else "")
-    elif section == "objective":
-        rule = OBJECTIVE_WEIGHT if name.startswith("w_") else OBJECTIVE_REFERENCE
-    elif section == "constraints":
-        rule = CONSTRAINT_LIMIT
+    elif section == "objective" and name.startswith("w_"):
+        rule = OBJECTIVE_WEIGHT
+    elif section in ("objective", "constraints"):  # a reference or a limit: its quantity's unit
+        rule = OBJECTIVE_REFERENCE if section == "objective" else CONSTRAINT_LIMIT
+        unit = unit_text(key)
+        rule = rule if unit == "–" else rule._replace(unit=f" {unit}")
     elif section == "bounds" and name in VARIABLES:
         return f"[lo, hi], lo < hi, each {allowed_text(f'{VARIABLES[name][0]}.{name}')}"
     else:
@@ -906,13 +970,9 @@ def _merge(default, override, path=()):
     merged = copy.deepcopy(default)
     for key, value in override.items():
         where = ".".join(map(str, path + (key,)))
-        section = path[0] if path else None
-        if (
-            key not in default
-            and section not in ("objective", "constraints", "bounds", "friction", "uncertainty")
-            and where not in OPTIONAL_KEYS
-        ):
-            raise SpecError(f"unknown key {where}; allowed here: {', '.join(sorted(default))}")
+        accepted = accepted_keys(tuple(map(str, path)))
+        if accepted is not None and key not in accepted:
+            raise SpecError(f"unknown key {where}; allowed here: {', '.join(accepted)}")
         if isinstance(default.get(key), dict):
             if not isinstance(value, Mapping):
                 raise SpecError(f"{where} must be a table")
@@ -1372,11 +1432,10 @@ def _check(table):
         vehicle, modes, axle = _vehicle(table)
         v.update(vehicle)
     grease = _string(table, "friction", "grease", tuple(GREASE_MU_SLP))
+    accepted = accepted_keys(("friction",))
     for key in table["friction"]:
-        if key not in ("grease", "lam", "gaf_model", "mu_slp"):
-            raise SpecError(
-                f"unknown key friction.{key}; allowed here: gaf_model, grease, lam, mu_slp"
-            )
+        if key not in accepted:
+            raise SpecError(f"unknown key friction.{key}; allowed here: {', '.join(accepted)}")
     if "mu_slp" in table["friction"]:
         mu_slp = _number(table, "friction", "mu_slp")
     else:
@@ -1401,11 +1460,10 @@ def _check(table):
         for k, (lo, hi) in bounds.items()
     }
     v["bounds"] = {k: np.asarray(pair) for k, pair in v["bounds"].items()}
+    accepted = accepted_keys(("solver",))
     for key in table["solver"]:
-        if key not in (*INTEGER_LIMITS, "tolerance", "fidelity"):
-            raise SpecError(
-                f"unknown key solver.{key}; allowed here: {', '.join((*INTEGER_LIMITS, 'fidelity', 'tolerance'))}"
-            )
+        if key not in accepted:
+            raise SpecError(f"unknown key solver.{key}; allowed here: {', '.join(accepted)}")
     sizes = {k: _integer(table, k) for k in INTEGER_LIMITS}
     work = math.prod(sizes[k] for k in WORK_KEYS)
     if work > MAX_WORK:

@@ -50,9 +50,6 @@ ENTRY_KEYS = {
     "lognormal": ("sd", "cov"),
     "uniform": ("low", "high", "half_width"),
 }
-# The default tolerances of `optimize-joint --reliability` (docs/reliability.md gives the
-# sources): manufacturing tolerances on R and d (σ 0.01 mm), the workbook's conformity range
-# (1.002–1.008, seed fig. 4.3.10) and a 5 % scatter of the allowed dynamic pressure.
 DEFAULT_TOLERANCES_TOML = """\
 [uncertainty]
 R = { distribution = "normal", sd = 0.01 }
@@ -60,6 +57,10 @@ d_roller = { distribution = "normal", sd = 0.01 }
 conformity = { distribution = "uniform", low = 1.002, high = 1.008 }
 hertz.P_d = { distribution = "normal", cov = 0.05 }
 """
+"""The default tolerances of ``optimize-joint --reliability``, an ``[uncertainty]`` section
+(TOML; docs/reliability.md gives the sources): manufacturing tolerances on R and
+d_roller (normal, σ 0.01 mm), the workbook's conformity range (uniform on 1.002–1.008 [–],
+seed fig. 4.3.10) and a 5 % scatter (CoV) of the allowed dynamic pressure hertz.P_d [MPa]."""
 
 
 # A spread whose square (the variance; the lognormal's log-variance ln(1 + CoV²)) overflows is

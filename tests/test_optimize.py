@@ -247,6 +247,19 @@ LISTS = (
         ("[forces]\nmu_trunnion = -0.1", "forces.mu_trunnion = -0.1 is not allowed"),
         ("[forces]\nlts_speed_rpm = nan", "forces.lts_speed_rpm = nan is not allowed"),
         ("[forces]\nmu = 0.1", "unknown key forces.mu; allowed here: contact_angle_deg"),
+        (
+            "[loads]\nM_mx = 1200.0",
+            "unknown key loads.M_mx; allowed here: M_max, gaf_torque, shock_factor",
+        ),
+        (
+            "[life]\nfoo = 1",
+            "unknown key life.foo; allowed here: angle_law, conditions, required_km, share, "
+            "spectrum_file, speed, torque, vehicle_speed",
+        ),
+        (
+            "[friction]\nfoo = 1",
+            "unknown key friction.foo; allowed here: gaf_model, grease, lam, mu_slp",
+        ),
         ('[friction]\ngaf_model = "lee"', 'allowed: "stroke", "printed", "forces"'),
         ("[bounds]\nR = [30.0, 20.0]", "bounds.R = [30.0, 20.0] is not allowed"),
         ("[bounds]\nR = [15.0, 150.0]", "R/l ≤ 0.2"),

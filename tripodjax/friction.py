@@ -128,8 +128,12 @@ def _params_outside(params, dtype):
 
 
 GREASE_A = FrictionParams(mu_slp=0.06)
+"""The seed's grease A: pure-sliding coefficient μ_slp = 0.06 [–], the other constants
+`FrictionParams`' defaults (seed §3.2.3)."""
 GREASE_B = FrictionParams(mu_slp=0.09)
+"""The seed's grease B: μ_slp = 0.09 [–], the other constants as `GREASE_A` (seed §3.2.3)."""
 DRY = FrictionParams(mu_slp=0.30)
+"""Dry contact: μ_slp = 0.30 [–], the other constants as `GREASE_A` (seed §3.2.3)."""
 
 
 def _degrees(gamma):

@@ -121,7 +121,6 @@ def check_layout(
     return checked
 
 
-# The seed's Table 2.1 cases (§2.10): code → (l [mm], R [mm], γ0 [deg]); read-only.
 TABLE_2_1: Mapping[str, tuple[float, float, float]] = types.MappingProxyType(
     {
         "N": (500.0, 25.0, 20.0),
@@ -137,6 +136,8 @@ TABLE_2_1: Mapping[str, tuple[float, float, float]] = types.MappingProxyType(
         "g25": (500.0, 25.0, 25.0),
     }
 )
+"""The seed's Table 2.1 cases (§2.10): code → (l [mm], R [mm], γ0 [deg]), read-only;
+`seed_case` gives one as a `Layout`."""
 
 
 def seed_case(code: str) -> Layout:
