@@ -161,10 +161,21 @@ def _parse(argv):
     return parser.parse_args(argv)
 
 
-def _check_out(path):
-    """Create --out if absent; it must be a writable directory. Returns an error line or None."""
+def _out_named(path):
+    """--out names a directory or a place for one (checked before the spec is read, without
+    importing JAX; `_check_out` creates it after). Returns an error line or None."""
     if not path or not path.strip():
         return "--out is empty; give a directory"
+    if os.path.exists(path) and not os.path.isdir(path):
+        return f"--out {path} exists and is not a directory"
+    return None
+
+
+def _check_out(path):
+    """Create --out if absent; it must be a writable directory. Returns an error line or None."""
+    problem = _out_named(path)
+    if problem:
+        return problem
     try:
         os.makedirs(path, exist_ok=True)
     except FileExistsError:
@@ -276,7 +287,7 @@ def _summary(result):
 
 def _main(argv):
     args = _parse(argv)
-    problem = label_problem("--revision", args.revision)  # the spec's rule for its names
+    problem = label_problem("--revision", args.revision) or _out_named(args.out)
     if problem is None:
         from tripodjax.optimize.spec import SpecError, load_spec
 
