@@ -134,7 +134,8 @@ def fmt(value, digits=5):
         if 10**digits <= abs(value) < 1e9:
             return f"{value:.0f}"
         if 1e-3 <= abs(value) < 10**digits:
-            return f"{value:.{digits}g}"
+            text = f"{value:.{digits}g}"  # 99999.7 rounds up to "1e+05": written out instead
+            return f"{value:.0f}" if "e" in text else text
         return f"{value:.{digits - 1}e}"
     return str(value)
 
@@ -475,6 +476,55 @@ def _at_least(value, limit):
     return value >= limit
 
 
+# The requirements every run checks (the rows above); the rest of report["constraints"] are
+# the spec's own [constraints].
+_BUILT_IN_REQUIREMENTS = ("static_capacity", "life", "outboard_static", "outboard_life")
+
+
+def _spec_requirement_checks(report):
+    """The verdict table's rows of the spec's own [constraints] (an envelope, R/d, a kinematic
+    limit, a chance constraint): a design requirement as binding as the joints' checks."""
+    from tripodjax.optimize.spec import CHANCE_PREFIXES
+
+    rows = []
+    for name, c in (report.get("constraints") or {}).items():
+        if name in _BUILT_IN_REQUIREMENTS or name.startswith(("shaft_static[", "shaft_fatigue[")):
+            continue
+        c = c if isinstance(c, dict) else {}
+        limit, value, margin = (cell(c.get(k)) for k in ("limit", "value", "margin"))
+        unit = c.get("unit") or "–"
+        requirement = f"{c.get('sense', '')} {fmt(limit)}" + ("" if unit == "–" else f" {unit}")
+        # The margin is log(value/limit) (≥) or log(limit/value) (≤): its exponential is the
+        # requirement's safety, ≥ 1 where met, as the joints' safeties.
+        safety = margin if isinstance(margin, NotAvailable) else math.exp(margin)
+        if name.startswith(tuple(CHANCE_PREFIXES)):
+            safety = NotAvailable("a probability requirement: the reliability section gives it")
+        rows.append(
+            [
+                "design (spec)",
+                f"constraints.{name}",
+                requirement,
+                value,
+                unit,
+                safety,
+                _passes(margin if isinstance(margin, NotAvailable) else margin >= 0),
+            ]
+        )
+    return rows
+
+
+def _run_problems(report):
+    """What keeps a run's answer from being validated whatever its checks show: an optimisation
+    that did not converge or found no feasible design."""
+    status = report.get("status") or {}
+    problems = []
+    if status.get("feasible") is False:
+        problems.append("the optimisation found no design meeting every requirement")
+    if report.get("converged") is False:
+        problems.append("the optimisation did not converge (the design is not its answer)")
+    return problems
+
+
 def _tripod_checks(report):
     """The verdict table's rows of the inboard tripod: its Hertz static capacity and its life."""
     k_s = cell(_get(report, "spec", "loads", "shock_factor"))
@@ -600,10 +650,21 @@ def _validation(report):
             f"{fmt(cell(torque.get('backward')))} N·m backward, the largest working torques with "
             "the shock factor k_s; fatigue and life over the required mileage."
         )
+    rows += _spec_requirement_checks(report)
     failed = [f"{r[0]}: {r[1].split(';')[0]}" for r in rows if r[6] != "passes"]
-    if failed:
+    unfinished = _run_problems(report)
+    if failed or unfinished:
         verdict = (
-            f"Not validated: {'; '.join(failed)} {'does' if len(failed) == 1 else 'do'} not pass."
+            "Not validated: "
+            + "; ".join(
+                unfinished
+                + (
+                    [f"{'; '.join(failed)} {'does' if len(failed) == 1 else 'do'} not pass"]
+                    if failed
+                    else []
+                )
+            )
+            + "."
         )
     elif halfshaft is None:
         verdict = "Not validated: the inboard tripod passes; the outboard joint and the shaft sections are not checked."

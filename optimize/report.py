@@ -271,8 +271,12 @@ def figure_margins(result):
     names = list(result.constraints)
     margins = [result.constraints[n]["margin"] for n in names]
     ax.barh([label(n) for n in names], margins, color=["C2" if m >= 0 else "C3" for m in margins])
-    for y, m in enumerate(margins):
-        text = f"{m:+.2e}" + (" (active)" if abs(m) < 1e-3 else "")
+    multipliers = getattr(result, "multipliers", None) or {}
+    for y, (name, m) in enumerate(zip(names, margins, strict=True)):
+        # As the report's table: active where the multiplier is positive (the requirement holds
+        # the design), NOT met where the margin is negative, whatever its size.
+        active = multipliers.get(name, 0.0) > 0
+        text = f"{m:+.2e}" + (" (NOT met)" if m < 0 else " (active)" if active else "")
         ax.annotate(
             text,
             (max(m, 0), y),

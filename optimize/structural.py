@@ -197,14 +197,28 @@ def _halfshaft(structure, values, x):
     return halfshaft_checks(structure, values, full_design(structure, values, x))
 
 
-def _requirement(name, value, relation, limit, text):
-    """(passed, words) of ``value relation limit`` (``relation`` "≥" or "<"); ``text`` formats
-    a number. A value that is not finite passes nothing: the words say it is not finite."""
+def _requirement(name, value, relation, limit, unit=""):
+    """(passed, words) of ``value relation limit`` (``relation`` "≥" or "<"), the numbers as
+    `_apart` writes them (never "1 < 1" for a safety of 0.9998, nor "100000 km < 100000 km"). A
+    value that is not finite passes nothing: the words say it is not finite."""
     if not math.isfinite(value):
         return False, f"{name} not finite ({value!r})"
     passed = value >= limit if relation == "≥" else value < limit
     opposite = {"≥": "<", "<": "≥"}[relation]
-    return passed, f"{name} {text(value)} {relation if passed else opposite} {text(limit)}"
+    shown, bound = _apart(value, limit, "f" if unit == " km" else "g")
+    return passed, f"{name} {shown}{unit} {relation if passed else opposite} {bound}{unit}"
+
+
+def _apart(value, limit, style):
+    """``value`` and ``limit`` as text: ``style`` "g" to 3 significant figures, "f" to whole
+    units (a life in km), with more digits where those round them to the same text (distinct
+    floats are told apart)."""
+    start = 3 if style == "g" else 0
+    for n in range(start, start + 18):
+        shown, bound = f"{value:.{n}{style}}", f"{limit:.{n}{style}}"
+        if shown != bound or value == limit:
+            break
+    return shown, bound
 
 
 def _verdict(checks, code=RESULTS.successful):
@@ -277,8 +291,8 @@ def halfshaft_report(spec: Spec, design: Mapping[str, float] | None = None) -> d
         safety, allowed = float(out["static_safety"][i]), float(s["allowed_damage"])
         damage = max(outer, core)
         code = int(max(np.max(out["static_result"][i]), np.max(out["fatigue_result"][i])))
-        static = _requirement("static safety", safety, "≥", 1.0, lambda v: f"{v:.3g}")
-        fatigue = _requirement("damage", damage, "<", allowed, lambda v: f"{v:.3g}")
+        static = _requirement("static safety", safety, "≥", 1.0)
+        fatigue = _requirement("damage", damage, "<", allowed)
         sections.append(
             {
                 "name": name,
@@ -307,8 +321,8 @@ def halfshaft_report(spec: Spec, design: Mapping[str, float] | None = None) -> d
         safety = float(np.float64(out["M_s"]) / np.float64(forward))
     km = float(out["life_km"])
     code = int(max(np.max(out["hertz_result"]), np.max(out["life_result"])))
-    static = _requirement("static safety", safety, "≥", shock, lambda v: f"{v:.3g}")
-    life_check = _requirement("life", km, "≥", required_km, lambda v: f"{v:.0f} km")
+    static = _requirement("static safety", safety, "≥", shock)
+    life_check = _requirement("life", km, "≥", required_km, " km")
     static_ok = static[0] and code == RESULTS.successful
     life_ok = life_check[0] and code == RESULTS.successful
     conditions = [

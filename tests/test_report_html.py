@@ -725,7 +725,18 @@ def expected_verdicts(body):
         verdicts += [words[outboard["static_passed"]], words[outboard["life_passed"]]]
         for s in body["halfshaft"]["sections"]:
             verdicts += [words[s["static_passed"]], words[s["fatigue_passed"]]]
+    verdicts += [words[c["margin"] >= 0] for c in spec_constraints(body).values()]
     return verdicts
+
+
+def spec_constraints(body):
+    """The spec's own [constraints] in report.json (the verdict table's last rows)."""
+    built_in = ("static_capacity", "life", "outboard_static", "outboard_life")
+    return {
+        name: c
+        for name, c in body["constraints"].items()
+        if name not in built_in and not name.startswith(("shaft_static[", "shaft_fatigue["))
+    }
 
 
 def without_halfshaft(body):
@@ -747,7 +758,8 @@ def test_the_verdict_table_is_the_same_in_json_xlsx_and_html(run):
         {k: v for k, v in body.items() if k != "validation"}
     )
     assert [r[-1] for r in rows] == expected_verdicts(body)
-    assert len(rows) == 4 + 2 * len(body["halfshaft"]["sections"])
+    assert len(rows) == 4 + 2 * len(body["halfshaft"]["sections"]) + len(spec_constraints(body))
+    assert spec_constraints(body)  # the default spec's R/d limits: rows of the table too
     sheet = read_sheets(out / "report.xlsx")["validation"]
     assert [list(r) for r in sheet] == [body["validation"]["columns"]] * len(rows)
     for r, j in zip(sheet, rows, strict=True):
@@ -776,7 +788,8 @@ def test_the_validation_document_says_why_a_part_is_missing(run):
     _, body = run
     absent = without_halfshaft(body)
     table = document.tables(absent, document.VALIDATION_SECTIONS)["validation"]
-    assert [r[0] for r in table.rows] == ["inboard tripod", "inboard tripod"]
+    n = len(spec_constraints(absent))
+    assert [r[0] for r in table.rows] == ["inboard tripod"] * 2 + ["design (spec)"] * n
     assert "the report has no halfshaft section" in table.notes[1]
     page = document.render_validation(absent)
     assert "shaft sections are not checked: the report has no halfshaft section" in page
@@ -919,3 +932,64 @@ def test_xlsx_writes_a_name_that_looks_like_a_formula_as_text(run, tmp_path):
 
     cell = load_workbook(tmp_path / "r.xlsx")["life"]["A2"]
     assert (cell.value, cell.data_type) == ("=1+2", "s")
+
+
+def test_the_validation_verdict_counts_the_spec_constraints_and_the_run():
+    """validation.html said "Every check passes." for an infeasible, unconverged run whose
+    spec constraints (an envelope, R/d) failed: they are rows now, and the run's status a
+    reason of the verdict. A margin is log(value/limit): its exponential the row's safety."""
+    from tripodjax.optimize import document
+
+    report = {
+        "converged": False,
+        "status": {"feasible": False},
+        "constraints": {
+            "static_capacity": {"value": 9.0, "limit": 1.0, "sense": "≥", "margin": 2.2},
+            "shaft_static[C-C]": {"value": 0.9, "limit": 1.0, "sense": "≥", "margin": -0.1},
+            "max_outer_diameter": {
+                "value": 92.945,
+                "limit": 85.0,
+                "sense": "≤",
+                "unit": "mm",
+                "margin": math.log(85.0 / 92.945),
+            },
+            "min_R_over_d": {
+                "value": 0.64,
+                "limit": 0.63,
+                "sense": "≥",
+                "unit": "–",
+                "margin": math.log(0.64 / 0.63),
+            },
+        },
+    }
+    rows = document._spec_requirement_checks(report)
+    assert [r[1] for r in rows] == ["constraints.max_outer_diameter", "constraints.min_R_over_d"]
+    envelope, ratio = rows
+    assert envelope[2] == "≤ 85 mm" and envelope[3] == 92.945 and envelope[6] == "fails"
+    assert envelope[5] == pytest.approx(85.0 / 92.945, rel=1e-12)
+    assert ratio[2] == "≥ 0.63" and ratio[6] == "passes"
+    assert document._run_problems(report) == [
+        "the optimisation found no design meeting every requirement",
+        "the optimisation did not converge (the design is not its answer)",
+    ]
+    assert document._run_problems({"converged": True, "status": {"feasible": True}}) == []
+    assert document.fmt(99999.7) == "100000"  # not "1e+05" beside "≥ 100000 km"
+
+
+def test_the_margins_chart_marks_active_by_multiplier_and_never_a_violated_one():
+    """The chart said "(active)" for a margin of −2.2e-4 whose requirement was NOT met and whose
+    multiplier was 0 in the table; it follows the table now."""
+    from tripodjax.optimize import report
+
+    result = types.SimpleNamespace(
+        constraints={
+            "life": {"margin": 0.0},
+            "shaft_static[C-C]": {"margin": -2.24e-4},
+            "max_R_over_d": {"margin": 0.27},
+            "min_R_over_d": {"margin": 2e-5},
+        },
+        multipliers={"life": 0.8, "shaft_static[C-C]": 0.0, "max_R_over_d": 0.0},
+    )
+    fig = report.figure_margins(result)
+    texts = [t.get_text() for t in fig.axes[0].texts]
+    assert texts == ["+0.00e+00 (active)", "-2.24e-04 (NOT met)", "+2.70e-01", "+2.00e-05"]

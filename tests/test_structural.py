@@ -257,3 +257,22 @@ def test_a_reverse_that_lifts_the_wheel_is_checked_forward_alone():
         assert reverse == [0.0]
         # the forward torque is the same, and it gives the default's smaller safety here
         assert mine["static_safety"] >= theirs["static_safety"]
+
+
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (("static safety", 0.99978, "≥", 1.0), (False, "static safety 0.9998 < 1")),
+        (("static safety", 1.549, "≥", 1.1), (True, "static safety 1.55 ≥ 1.1")),
+        (("life", 99999.6, "≥", 1e5, " km"), (False, "life 99999.6 km < 100000.0 km")),
+        (("life", 65811.3, "≥", 1e5, " km"), (False, "life 65811 km < 100000 km")),
+        (("damage", 1.0, "<", 1.0), (False, "damage 1 ≥ 1")),  # equal: the limit itself fails
+        (("damage", 0.9999999, "<", 1.0), (True, "damage 0.9999999 < 1")),
+    ],
+)
+def test_a_verdicts_words_never_round_the_value_onto_its_limit(args, words):
+    """The console line and report.json's words of a check: "1 < 1" was printed for a safety
+    of 0.99978; the numbers get the digits that tell them apart."""
+    from tripodjax.optimize import structural
+
+    assert structural._requirement(*args) == words
