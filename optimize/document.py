@@ -568,10 +568,13 @@ def _halfshaft_checks(halfshaft):
     required = cell(o.get("required_km"))
     km = cell(o.get("life_km"))
     k_s = cell(o.get("required_static_safety"))
-    forward = cell((halfshaft.get("static_torque_Nm") or {}).get("forward"))
+    torques = halfshaft.get("static_torque_Nm") or {}
+    # The joints' static checks take the larger of the two directions (problem.joint_torque).
+    largest = [cell(torques.get(k)) for k in ("forward", "backward")]
+    largest = [t for t in largest if isinstance(t, float)]
     static = f"M_s/M_max ≥ {fmt(k_s)}"
-    if isinstance(k_s, float) and isinstance(forward, float):  # as the tripod's row says it
-        static += f" (M_s ≥ {fmt(k_s * forward)} N·m)"
+    if isinstance(k_s, float) and largest:  # as the tripod's row says it
+        static += f" (M_s ≥ {fmt(k_s * max(largest))} N·m)"
     rows = [
         [
             "outboard joint",
@@ -648,7 +651,8 @@ def _validation(report):
         notes.append(
             f"Static checks at M_max {fmt(cell(torque.get('forward')))} N·m forward and "
             f"{fmt(cell(torque.get('backward')))} N·m backward, the largest working torques with "
-            "the shock factor k_s; fatigue and life over the required mileage."
+            "the shock factor k_s: the sections at both, the joints at the larger (a joint's "
+            "capacity holds in either direction); fatigue and life over the required mileage."
         )
     rows += _spec_requirement_checks(report)
     failed = [f"{r[0]}: {r[1].split(';')[0]}" for r in rows if r[6] != "passes"]

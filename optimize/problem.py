@@ -266,7 +266,19 @@ def m_max(structure, values, cycles=None):
     return values["loads"]["M_max"]
 
 
-_m_max = latency_bound_jit(m_max, static_argnums=0)
+def joint_torque(structure, values, cycles=None):
+    """The torque [N·m] of the joints' static checks (M_s ≥ k_s · it): `m_max`, and where the
+    spec has a vehicle the larger of it and the vehicle's largest backward working torque (a
+    joint's static capacity holds in either direction; a front-driven car's reverse may carry
+    the most). The shaft sections are checked at both torques (``halfshaft_checks``)."""
+    forward = m_max(structure, values, cycles)
+    if not structure.vehicle_modes:
+        return forward
+    cycles = load_cycles(structure, values) if cycles is None else cycles
+    return jnp.maximum(forward, cycles.M_max_backward)
+
+
+_joint_torque = latency_bound_jit(joint_torque, static_argnums=0)
 
 
 def load_spectrum(structure, values):
@@ -525,7 +537,7 @@ def requirement_margins(structure, values, q):
     loads = values["loads"]
     required_km = values["life"]["required_km"]
     margins = [
-        jnp.log(q["static_capacity"] / (loads["shock_factor"] * m_max(structure, values))),
+        jnp.log(q["static_capacity"] / (loads["shock_factor"] * joint_torque(structure, values))),
         jnp.log(q["life_km"] / required_km),
     ]
     if structure.halfshaft:
@@ -546,7 +558,7 @@ def limits(structure, values):
     loads = values["loads"]
     with jax.enable_x64(True):  # the vehicle's M_max in float64, as the solve
         # compiled (and, in the command, exported): op by op it took ~0.2 s a call
-        torque = float(call(_m_max, structure, values))
+        torque = float(call(_joint_torque, structure, values))
     out = {
         "static_capacity": (
             "static_capacity",

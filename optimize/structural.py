@@ -172,7 +172,7 @@ def halfshaft_quantities(structure, values, design):
 
     A section's static safety is the smallest over its profile's kinks and both torques, its
     damage the larger of its two radii's (as the report's); the outboard joint's static safety
-    is M_s / M_max forward.
+    is M_s over the larger of the two torques (``problem.joint_torque``).
     """
     out = halfshaft_checks(structure, values, design)
     damage = jnp.max(out["damage"], axis=-1)
@@ -180,7 +180,7 @@ def halfshaft_quantities(structure, values, design):
         "shaft_area": out["area"],
         "shaft_static_safety": jnp.min(out["static_safety"]),
         "shaft_damage": jnp.max(damage),
-        "outboard_static_safety": out["M_s"] / out["torque"][0],
+        "outboard_static_safety": out["M_s"] / jnp.max(out["torque"]),  # either direction
         "outboard_life_km": out["life_km"],
     }
     sections = {}
@@ -318,7 +318,7 @@ def halfshaft_report(spec: Spec, design: Mapping[str, float] | None = None) -> d
     shock = float(values["loads"]["shock_factor"])
     required_km = float(values["life"]["required_km"])
     with np.errstate(divide="ignore", invalid="ignore"):  # no torque: no finite safety
-        safety = float(np.float64(out["M_s"]) / np.float64(forward))
+        safety = float(np.float64(out["M_s"]) / np.float64(max(forward, backward)))
     km = float(out["life_km"])
     code = int(max(np.max(out["hertz_result"]), np.max(out["life_result"])))
     static = _requirement("static safety", safety, "≥", shock)

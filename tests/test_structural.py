@@ -276,3 +276,33 @@ def test_a_verdicts_words_never_round_the_value_onto_its_limit(args, words):
     from tripodjax.optimize import structural
 
     assert structural._requirement(*args) == words
+
+
+def test_the_joints_static_checks_take_the_larger_direction():
+    """A front-driven car whose reverse carries more than any forward gear (1491 against
+    1214 N·m): the tripod's and the outboard joint's M_s ≥ k_s · M_max take the backward torque
+    (they took the forward one while the document said both); the default rear-driven
+    vehicle's forward torque stays the larger."""
+    from tripodjax.optimize import problem
+
+    front = optimize.parse_spec(
+        '[vehicle]\naxle = "front"\nmass_kg = 1450.0\nfront_share = 0.60\n'
+        "rear_torque_share = 0.0\nengine_torque_Nm = [300.0, 320.0, 290.0, 40.0]\n"
+        "engine_speed_rpm = [2500.0, 3500.0, 6000.0, 3000.0]\n"
+    )
+    for spec in (front, optimize.load_spec()):
+        structure, values = spec.structure, spec.values
+        cycles = problem.load_cycles(structure, values)
+        forward, backward = float(cycles.M_max_forward), float(cycles.M_max_backward)
+        assert float(problem.joint_torque(structure, values)) == max(forward, backward)
+        k_s = float(values["loads"]["shock_factor"])
+        limit = problem.limits(structure, values)["static_capacity"][1]
+        assert limit == pytest.approx(k_s * max(forward, backward), rel=1e-12)
+    assert backward < forward  # the default: forward governs, results unchanged
+    report = optimize.halfshaft_report(front)
+    outboard = report["outboard"]
+    torque = report["static_torque_Nm"]
+    assert torque["backward"] > torque["forward"]
+    assert outboard["static_safety"] == pytest.approx(
+        outboard["M_s_Nm"] / torque["backward"], rel=1e-12
+    )
