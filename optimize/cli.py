@@ -4,7 +4,7 @@ Exit status (also in ``--help``):
 
 - 0: converged to a feasible design;
 - 1: not converged, or infeasible (no start reached feasibility; the message says
-  "infeasible" and names the smallest violations); the report is written either way;
+  "infeasible" and names the largest violations); the report is written either way;
 - 2: bad specification, arguments or output folder (one line, nothing computed);
 - 3: the report could not be written (the design is printed; an older report is left intact);
 - 130: interrupted (Ctrl-C, SIGINT); 143: terminated (SIGTERM); one line, no partial files;
@@ -494,7 +494,8 @@ def _verdict(result):
             if others
             else "no start reached feasibility"
         )
-        return (f"infeasible: {which}; smallest violations: {listed}", EXIT_NOT_CONVERGED)
+        more = f" ({len(worst)} in all)" if len(worst) > 3 else ""
+        return (f"infeasible: {which}; largest violations{more}: {listed}", EXIT_NOT_CONVERGED)
     if not result.converged:
         reasons = []
         if not result.kkt_converged:

@@ -305,25 +305,38 @@ def figure_pareto(result, pareto):
     groups = pareto_groups(pareto)  # weights that land on one design: one point, one label
     size = [r.quantities["outer_diameter"] for _, r in groups]
     gaf = [r.quantities["gaf_rms"] for _, r in groups]
-    ax.plot(size, gaf, "o-", label="Pareto front (GAF weight swept)")
-    middle = (min(size) + max(size)) / 2
+    # A front only where every weight's solve converged; else the designs the solves ended at.
+    converged = all(getattr(r, "converged", True) for _, r in groups)
+    ax.plot(
+        size,
+        gaf,
+        "o-",
+        label="Pareto front (GAF weight swept)"
+        if converged
+        else "designs per GAF weight (not every solve converged: no front)",
+    )
+    star = (result.quantities["outer_diameter"], result.quantities["gaf_rms"])
+    low, high = min(size + [star[0]]), max(size + [star[0]])
+    middle = (low + high) / 2
+    one_size = high - low <= 1e-6 * max(abs(high), 1.0)  # every weight gave one design
     for (weights, _), s, g in zip(groups, size, gaf, strict=True):
         right = s > middle  # a label toward the middle of the plot, never off its edge
         ax.annotate(
             "w_gaf_rms = " + ", ".join(f"{w:g}" for w in weights),
             (s, g),
             textcoords="offset points",
-            xytext=(-6 if right else 6, 6),
-            ha="right" if right else "left",
+            xytext=(0, 8) if one_size else (-6 if right else 6, 6),
+            ha="center" if one_size else "right" if right else "left",
             fontsize=8,
         )
-    ax.plot(
-        [result.quantities["outer_diameter"]],
-        [result.quantities["gaf_rms"]],
-        "r*",
-        ms=14,
-        label="proposed design",
-    )
+    ax.plot(*([v] for v in star), "r*", ms=14, label="proposed design")
+    # Spans of roundoff (a front of one design, the star 5e-13 mm beside it) are no scale:
+    # at least ±1 % of the values, so the axes keep readable ticks.
+    for values, limits in ((size + [star[0]], ax.set_xlim), (gaf + [star[1]], ax.set_ylim)):
+        lo, hi = min(values), max(values)
+        pad = 0.01 * max(abs(lo), abs(hi), 1e-9)
+        if hi - lo < pad:
+            limits(lo - pad, hi + pad)
     ax.set(
         title="GAF against joint size",
         xlabel="outer-diameter proxy 2R + d [mm]",

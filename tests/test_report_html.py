@@ -993,3 +993,30 @@ def test_the_margins_chart_marks_active_by_multiplier_and_never_a_violated_one()
     fig = report.figure_margins(result)
     texts = [t.get_text() for t in fig.axes[0].texts]
     assert texts == ["+0.00e+00 (active)", "-2.24e-04 (NOT met)", "+2.70e-01", "+2.00e-05"]
+
+
+def test_a_front_of_one_design_keeps_readable_axes_and_its_label_inside():
+    """Every GAF weight gave one design, the proposed one 5e-13 mm beside it: the axes spanned
+    roundoff (no tick labels), the label sat off the right edge, and an unconverged front was
+    called a Pareto front."""
+    from tripodjax.optimize import report
+
+    def design(size, converged=True):
+        return types.SimpleNamespace(
+            design={"R": 26.0, "d_roller": 41.0},
+            quantities={"outer_diameter": size, "gaf_rms": 452.0},
+            converged=converged,
+        )
+
+    pareto = [(w, design(92.945, converged=False)) for w in (0.25, 0.5, 1.0, 2.0, 4.0)]
+    fig = report.figure_pareto(design(92.945 + 5e-13), pareto)
+    ax = fig.axes[0]
+    for low, high in (ax.get_xlim(), ax.get_ylim()):
+        assert high - low >= 0.01 * abs(high)  # at least ±1 % of the values
+    (label,) = ax.texts
+    assert label.get_text() == "w_gaf_rms = 0.25, 0.5, 1, 2, 4" and label.get_ha() == "center"
+    legend = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert legend[0].startswith("designs per GAF weight (not every solve converged")
+    fig.canvas.draw()
+    box = label.get_window_extent()
+    assert 0 <= box.x0 and box.x1 <= fig.bbox.width  # inside the figure

@@ -193,7 +193,7 @@ def test_the_constraints_no_free_variable_changes_are_named(spec):
     )
     message, _ = _verdict(result)
     assert message == (
-        "infeasible: no start reached feasibility; smallest violations: outboard_life (margin "
+        "infeasible: no start reached feasibility; largest violations: outboard_life (margin "
         f"-0.0253; no free variable changes it), shaft_fatigue[{STEM}] (margin -0.01)"
     )
 
