@@ -138,6 +138,9 @@ def test_force_outputs_are_refused_without_their_inputs_and_with_both():
         sweep(batch, outputs=("gaf_peak",))
     with pytest.raises(ValueError, match="from gaf= .* or from forces= .*, not both"):
         sweep(batch, outputs=("gaf_rms",), gaf=friction.GAFInputs(500.0), forces=inputs)
+    with pytest.raises(ValueError, match="the GAF outputs come from gaf= .*, not both"):
+        # force outputs alone: gaf= was left unused without a word
+        sweep(batch, outputs=("lts_mean",), gaf=friction.GAFInputs(500.0), forces=inputs)
     with pytest.raises(ValueError, match=r"forces.mu_trunnion has shape \(2,\); allowed: one"):
         sweep(batch, outputs=("lts_mean",), forces=inputs.replace(mu_trunnion=np.zeros(2)))
     with pytest.raises(TypeError, match="forces = 500.0 is not allowed"):

@@ -127,10 +127,11 @@ def _check_outputs(outputs: object, gaf: object, forces: object) -> tuple[str, .
     if unknown:
         raise ValueError(f"outputs {unknown!r} not allowed; allowed: {', '.join(OUTPUTS)}")
     gaf_names = ", ".join(n for n in outputs if n in GAF_OUTPUTS)
-    if gaf_names and gaf is not None and forces is not None:
+    if gaf is not None and forces is not None:  # one would be left unused, without a word
+        named = f"outputs {gaf_names} come" if gaf_names else "the GAF outputs come"
         raise ValueError(
-            f"outputs {gaf_names} come from gaf= (Lee's friction) or from forces= (the force "
-            "model), not both; allowed: one of the two"
+            f"{named} from gaf= (Lee's friction) or from forces= (the force model), not both; "
+            "allowed: one of the two (the force outputs take forces=)"
         )
     if gaf_names and gaf is None and forces is None:
         raise ValueError(
