@@ -371,6 +371,22 @@ def _passes(passed):
     return "passes" if passed else "fails"
 
 
+def fatigue_passed(section):
+    """A shaft section's fatigue verdict (bool): Miner's damage D ≤ the allowed damage, computed
+    successfully: the optimiser's requirement (shaft_fatigue, ln(allowed/D) ≥ 0), met at
+    D = allowed. report.json's ``fatigue_passed`` flag (D < allowed and computed) misses that
+    equality; it is taken as it is otherwise."""
+    if section.get("fatigue_passed"):
+        return True
+    damage, allowed = cell(section.get("damage")), cell(section.get("allowed_damage"))
+    return section.get("status") == "successful" and damage == allowed
+
+
+# The sense of a shaft section's fatigue requirement, as the requirements table's
+# shaft_fatigue rows write it (problem: ln(allowed/D) ≥ 0).
+FATIGUE_SENSE = "≤"
+
+
 def _halfshaft_section(report):
     halfshaft = report.get("halfshaft")
     if halfshaft is None:
@@ -403,9 +419,9 @@ def _halfshaft(report):
             [
                 s["name"],
                 "fatigue damage (Miner)",
-                f"< {fmt(cell(s.get('allowed_damage')))}",
+                f"{FATIGUE_SENSE} {fmt(cell(s.get('allowed_damage')))}",
                 damage,
-                _passes(bool(s.get("fatigue_passed"))),
+                _passes(fatigue_passed(s)),
             ]
         )
     o = _get(h, "outboard")
@@ -428,8 +444,9 @@ def _halfshaft(report):
         ]
     )
     torque = _get(h, "static_torque_Nm")
+    passed = all(r[4] == "passes" for r in rows)  # the rows' rule (fatigue met at D = allowed)
     notes = [
-        f"The halfshaft {'passes' if h.get('passed') else 'does NOT pass'}. Sections checked "
+        f"The halfshaft {'passes' if passed else 'does NOT pass'}. Sections checked "
         f"statically at M_max {fmt(cell(torque.get('forward')))} N·m forward and "
         f"{fmt(cell(torque.get('backward')))} N·m backward and in fatigue under the vehicle's "
         f"load → engine-brake cycles (reading {h.get('reading', 'not given')}); the outboard "
@@ -616,11 +633,11 @@ def _halfshaft_checks(halfshaft):
             [
                 part,
                 "fatigue damage (Goodman, semi-log S–N, Miner)",
-                f"< {fmt(cell(s.get('allowed_damage')))}",
+                f"{FATIGUE_SENSE} {fmt(cell(s.get('allowed_damage')))}",
                 damage,
                 "–",
                 damage,
-                _passes(bool(s.get("fatigue_passed"))),
+                _passes(fatigue_passed(s)),
             ]
         )
     return rows

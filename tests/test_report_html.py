@@ -993,3 +993,42 @@ def test_the_margins_chart_marks_active_by_multiplier_and_never_a_violated_one()
     fig = report.figure_margins(result)
     texts = [t.get_text() for t in fig.axes[0].texts]
     assert texts == ["+0.00e+00 (active)", "-2.24e-04 (NOT met)", "+2.70e-01", "+2.00e-05"]
+
+
+def test_shaft_fatigue_at_the_allowed_damage_passes_in_both_documents(run):
+    """report.html wrote "≤ 1" (the optimiser's margin ln(allowed/D) ≥ 0, met at 0) and
+    validation.html "< 1" with a failing verdict at D = allowed: one rule now, D ≤ allowed, in
+    both documents and the verdict."""
+    _, body = run
+    at = copy.deepcopy(body)
+    section = at["halfshaft"]["sections"][0]
+    allowed = section["allowed_damage"]
+    # as report.json's halfshaft section writes it at D = allowed (its flag is D < allowed)
+    section.update(damage=allowed, fatigue_passed=False, status="successful")
+    name = section["name"]
+    sense = body["constraints"][f"shaft_fatigue[{name}]"]["sense"]
+    assert sense == "≤" and math.log(allowed / section["damage"]) >= 0  # the optimiser's margin
+    requirement = f"{sense} {document.fmt(allowed)}"
+
+    def fatigue_rows(report):
+        validation = document.tables(report, document.VALIDATION_SECTIONS)["validation"]
+        halfshaft = document.tables(report)["halfshaft"]
+        return (
+            [r for r in validation.rows if r[0].startswith(f"{name} (") and "fatigue" in r[1]][0],
+            [r for r in halfshaft.rows if r[0] == name and "fatigue" in r[1]][0],
+            validation.notes[0],
+        )
+
+    validation, halfshaft, verdict = fatigue_rows(at)
+    assert validation[2] == halfshaft[2] == requirement
+    assert validation[6] == halfshaft[4] == "passes"
+    assert verdict == "Every check passes."  # the default halfshaft's other checks pass
+    assert f"<td>{requirement}</td>" in document.render_validation(at)
+    assert f"<td>{requirement}</td>" in document.render_html(at)
+    above = copy.deepcopy(at)
+    above["halfshaft"]["sections"][0]["damage"] = allowed * (1 + 1e-12)
+    failed = copy.deepcopy(at)
+    failed["halfshaft"]["sections"][0]["status"] = "nonfinite"
+    for report_ in (above, failed):
+        validation, halfshaft, verdict = fatigue_rows(report_)
+        assert validation[6] == halfshaft[4] == "fails" and verdict.startswith("Not validated")
