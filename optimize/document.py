@@ -766,6 +766,27 @@ def _forces(report):
     return Table("forces", "Forces inside the joint", columns, rows, notes)
 
 
+UNAFFECTED = "not affected by the uncertain inputs"
+
+
+def _unaffected(requirement):
+    """β's text, +∞ or −∞, for a reliability requirement that no uncertain input affects
+    (its margin's gradient is 0 at the mean: FORM's β is ±∞, null in report.json, its
+    probability exactly 0 or 1 and every importance 0), else None (a β that is null because it
+    could not be computed keeps its reason)."""
+    importance = requirement.get("importance")
+    p = requirement.get("probability_form")
+    if requirement.get("beta_form") is not None or not isinstance(importance, dict):
+        return None
+    if not importance or any(v != 0 for v in importance.values()):
+        return None
+    if isinstance(p, bool) or p not in (0, 1) or requirement.get("form_converged") is False:
+        return None
+    if p == 0:
+        return f"+∞: {UNAFFECTED}"
+    return f"−∞: {UNAFFECTED} (always missed)"
+
+
 def _reliability(report):
     rel = report.get("reliability")
     if rel is None:
@@ -786,17 +807,24 @@ def _reliability(report):
         interval = r.get("mc_interval_95") or [None, None]
         importance = r.get("importance") or {}
         top = max(importance, key=lambda k: abs(importance[k] or 0.0), default=None)
+        beta, agree = cell(r.get("beta_form")), bool(r.get("agree"))
+        largest = f"{top} ({fmt(cell(importance[top]), 3)})" if top else "–"
+        if top and importance[top] == 0:  # no input moves the margin: none is the largest
+            largest = "none (every importance is 0)"
+        unaffected = _unaffected(r)
+        if unaffected is not None:  # β = ±∞ (null in the JSON): no FORM estimate to agree with
+            beta, agree = unaffected, "not compared (β infinite)"
         rows.append(
             [
                 r["name"],
-                cell(r.get("beta_form")),
+                beta,
                 cell(r.get("probability_form")),
                 cell(r.get("probability_mc")),
                 cell(interval[0]),
                 cell(interval[1]),
                 cell(r.get("samples")),
-                bool(r.get("agree")),
-                f"{top} ({fmt(cell(importance[top]), 3)})" if top else "–",
+                agree,
+                largest,
             ]
         )
     interval = rel.get("system_interval_95") or [None, None]

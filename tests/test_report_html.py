@@ -1032,3 +1032,39 @@ def test_shaft_fatigue_at_the_allowed_damage_passes_in_both_documents(run):
     for report_ in (above, failed):
         validation, halfshaft, verdict = fatigue_rows(report_)
         assert validation[6] == halfshaft[4] == "fails" and verdict.startswith("Not validated")
+
+
+def test_a_reliability_check_no_uncertain_input_affects_says_so():
+    """A check whose margin no uncertain input moves (FORM's β = ±∞, null in report.json, every
+    importance 0) showed "β not available (null …)", "largest importance R (0)" and "FORM and
+    MC agree: yes"; it says it is not affected now, and claims no agreement."""
+    flat = {
+        "name": "shaft_static[A-A]",
+        "beta_form": None,
+        "probability_form": 0.0,
+        "probability_sorm": None,
+        "importance": {"R": 0.0, "hertz.P_d": 0.0},
+        "form_converged": True,
+        "probability_mc": 0.0,
+        "mc_interval_95": [0.0, 3.8e-05],
+        "samples": 100000,
+        "agree": True,
+        "agree_basis": "form",
+    }
+    missed = dict(flat, name="outboard_life", probability_form=1.0, probability_mc=1.0)
+    unknown = dict(flat, name="life", probability_form=None, importance={"R": None})
+    rel = copy.deepcopy(RELIABILITY)
+    rel["requirements"] += [flat, missed, unknown]
+    rows = {r[0]: r for r in document.tables({"reliability": rel})["reliability"].rows[1:]}
+    affected = document.tables({"reliability": RELIABILITY})["reliability"].rows[0]
+    assert affected[7] is True and affected[8] == "loads.M_max (0.98)"  # as before
+    assert rows["shaft_static[A-A]"][1] == "+∞: not affected by the uncertain inputs"
+    assert rows["outboard_life"][1].startswith("−∞: not affected by the uncertain inputs")
+    for name in ("shaft_static[A-A]", "outboard_life"):
+        row = rows[name]
+        assert row[7] == "not compared (β infinite)" and row[8] == "none (every importance is 0)"
+    # A β that is null because FORM could not compute it keeps its reason.
+    assert isinstance(rows["life"][1], document.NotAvailable)
+    html = document.render_html({"reliability": rel})
+    table = html[html.index('data-table="reliability"') :].split("</table>")[0]
+    assert "(0)" not in table and table.count("not affected by the uncertain inputs") == 2
