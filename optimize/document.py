@@ -1408,6 +1408,21 @@ def _images(figures, wanted):
     return images
 
 
+def css_string(text):
+    """``text`` as a CSS string literal (for ``content:`` in a style element): every character
+    but letters, digits and plain punctuation as a hex escape, so that no quote, backslash,
+    ``<`` or line end of a spec name or revision ends the string or the style element (the
+    space after each escape is the escape's own)."""
+    import markupsafe
+
+    safe = set(" .,:;-_()/+#")
+    body = "".join(
+        ch if (ch.isascii() and ch.isalnum()) or ch in safe else f"\\{ord(ch):06x} "
+        for ch in str(text)
+    )
+    return markupsafe.Markup(f'"{body}"')
+
+
 @functools.cache
 def _environment():
     import jinja2
@@ -1421,6 +1436,7 @@ def _environment():
     )
     env.filters["fmt"] = fmt
     env.filters["exact"] = repr  # full precision in data-value: what a reader can check
+    env.filters["css_string"] = css_string
     env.tests["unavailable"] = lambda v: isinstance(v, NotAvailable)
     return env
 

@@ -5,6 +5,8 @@ import json
 import math
 import os
 import re
+import shutil
+import subprocess
 import sys
 import tempfile
 import time
@@ -802,6 +804,29 @@ def test_the_validation_document_says_why_a_part_is_missing(run):
         assert "Not available:" in document.render_validation(broken)
 
 
+def printed_margins(pdf_path, pages, body):
+    """Each printed page of validation.html says its page of the pages, the document and its
+    revision (CSS @page margin boxes; read back with pdftotext where it is installed, else the
+    CSS that prints them is checked)."""
+    revision = f"Rev. {body['written'].get('revision', '0')}"
+    html = document.render_validation(body)
+    assert '@bottom-right { content: "page " counter(page) " of " counter(pages);' in html
+    if shutil.which("pdftotext") is None:
+        assert f"@top-right {{ content: {document.css_string(revision)[:-1]}" in html
+        return
+    for page in range(1, pages + 1):
+        done = subprocess.run(
+            ["pdftotext", "-f", str(page), "-l", str(page), str(pdf_path), "-"],
+            capture_output=True,
+            text=True,
+            check=True,
+        )
+        text = " ".join(done.stdout.split())
+        assert f"page {page} of {pages}" in text, text[-200:]
+        assert f"Halfshaft validation, {revision}" in text
+        assert f"Halfshaft validation: {body['spec_source']}" in text
+
+
 @needs_chromium
 def test_validation_prints_on_at_most_4_a4_pages_with_the_reports_verdicts(run, tmp_path):
     out, body = run
@@ -857,6 +882,7 @@ def test_validation_prints_on_at_most_4_a4_pages_with_the_reports_verdicts(run, 
         assert overall == expected["validation"]["notes"][0]
         pdf = pdf_path.read_bytes()
         assert pdf[:5] == b"%PDF-" and 1 <= pdf_pages(pdf) <= 4, pdf_pages(pdf)
+        printed_margins(pdf_path, pdf_pages(pdf), expected)
         boxes = {
             tuple(map(float, b.split())) for b in re.findall(rb"/MediaBox\s*\[([^\]]*)\]", pdf)
         }
