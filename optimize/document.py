@@ -579,8 +579,12 @@ def _tripod_checks(report):
     return rows
 
 
-def _halfshaft_checks(halfshaft):
-    """The verdict table's rows of the outboard joint and of each shaft section."""
+def _halfshaft_checks(halfshaft, spec=None):
+    """The verdict table's rows of the outboard joint and of each shaft section (``spec``: the
+    report's, for each section's safety coefficient C_s)."""
+    shaft = (spec or {}).get("shaft") if isinstance(spec, dict) else None
+    shaft = shaft if isinstance(shaft, dict) else {}
+    names, safeties = shaft.get("names") or [], shaft.get("safety") or []
     o = _get(halfshaft, "outboard")
     required = cell(o.get("required_km"))
     km = cell(o.get("life_km"))
@@ -618,11 +622,14 @@ def _halfshaft_checks(halfshaft):
             f"h {fmt(cell(s.get('hardened_depth_mm')))} mm)"
         )
         safety, damage = cell(s.get("static_safety")), cell(s.get("damage"))
+        static = f"≥ {fmt(cell(s.get('required_static_safety')))}"
+        if s["name"] in names and len(safeties) == len(names):  # the coefficient inside τ_adm
+            static += f" (C_s {fmt(cell(safeties[names.index(s['name'])]))} in τ_adm)"
         rows.append(
             [
                 part,
                 "static safety τ_adm/τ, through the hardened layer",
-                f"≥ {fmt(cell(s.get('required_static_safety')))}",
+                static,
                 safety,
                 "–",
                 safety,
@@ -663,7 +670,7 @@ def _validation(report):
             f"The outboard joint and the shaft sections are not checked: {_ABSENT['halfshaft']}."
         )
     else:
-        rows += _halfshaft_checks(halfshaft)
+        rows += _halfshaft_checks(halfshaft, report.get("spec"))
         torque = _get(halfshaft, "static_torque_Nm")
         notes.append(
             f"Static checks at M_max {fmt(cell(torque.get('forward')))} N·m forward and "
@@ -1141,6 +1148,15 @@ _VEHICLE_INPUTS = (
     (("vehicle", "engine_speed_rpm"), "engine speed at the same conditions", "rpm"),
     (("vehicle", "gears", "ratios"), "overall ratios (gear × final drive), 1st gear first", "–"),
     (("vehicle", "gears", "reverse"), "overall ratio in reverse", "–"),
+    (("vehicle", "load_transfer_per_ratio_N"), "wheel-load transfer per unit overall ratio", "N"),
+    (("vehicle", "reverse_load_transfer_N"), "wheel-load transfer in reverse", "N"),
+)
+# The gear-use tables of [vehicle.modes]: (key, engine condition).
+_USE_TABLES = (
+    ("use_T_mean_pct", "mean torque"),
+    ("use_T_max_pct", "maximum torque"),
+    ("use_P_max_pct", "maximum power"),
+    ("use_brake_pct", "engine brake"),
 )
 _USE_INPUTS = (
     (("loads", "M_max"), "largest forward torque on the shaft, as given", "N·m"),
@@ -1166,6 +1182,22 @@ def _conditions_text(conditions):
     )
 
 
+def _use_text(names, use):
+    """A gear-use table: one list for every mode, or a list per mode (named)."""
+    if isinstance(use, list) and use and all(isinstance(u, list) for u in use):
+        return "; ".join(f"{n}: {_listed(u)}" for n, u in zip(names, use, strict=False))
+    return _listed(use)
+
+
+def _spec_cell(spec, *path):
+    """The spec's value at ``path`` as a cell (a list as its text), or the reason it is not
+    there (a report of an earlier version): one missing input never hides the others."""
+    try:
+        return _listed(_get(spec, *path))
+    except NotAvailable as reason:
+        return reason
+
+
 def _inputs(report):
     spec = _get(report, "spec")
     columns = [Column("input", kind="text"), Column("value"), Column("unit", kind="text")]
@@ -1179,7 +1211,7 @@ def _inputs(report):
     # are both given (optimize.spec).
     if "vehicle" in spec and ("M_max" not in _get(spec, "loads") or not explicit):
         for path, name, unit in _VEHICLE_INPUTS:
-            rows.append([name, _listed(_get(spec, *path)), unit])
+            rows.append([name, _spec_cell(spec, *path), unit])
         modes = _get(spec, "vehicle", "modes")
         rows.append(
             [
@@ -1188,6 +1220,18 @@ def _inputs(report):
                 "",
             ]
         )
+        for key, condition in _USE_TABLES:
+            use = modes.get(key)
+            rows.append(
+                [
+                    f"gear use at {condition}: % of the mode's revolutions, 1st gear first, "
+                    f"reverse last ({key})",
+                    NotAvailable(f"the report has no spec.vehicle.modes.{key}")
+                    if use is None
+                    else _use_text(modes["names"], use),
+                    "%",
+                ]
+            )
     else:
         notes.append(
             "No vehicle is used: the spec gives the largest torque (loads.M_max) and the load "
@@ -1214,7 +1258,119 @@ def _inputs(report):
                 "",
             ]
         )
-    return Table("inputs", "The customer's inputs", columns, rows, notes)
+    return Table("inputs", "Vehicle, loads and use", columns, rows, notes)
+
+
+def _design_or_spec(report, key, *path):
+    """A joint's input at the design (``report["design"][key]``, where the optimiser moves it)
+    or the spec's (``path``), as a cell."""
+    design = report.get("design")
+    if isinstance(design, dict) and key in design:
+        return cell(design[key])
+    return _spec_cell(_get(report, "spec"), *path)
+
+
+def _joints(report):
+    """The joints' Hertz inputs: the tripod's (its design R, d, Ψ and the [hertz] pressures)
+    and, with the halfshaft's checks, the outboard ball joint's ([outboard])."""
+    spec = _get(report, "spec")
+    columns = [
+        Column("joint", kind="text"),
+        Column("n", "–"),
+        Column("d", "mm"),
+        Column("R or PCR", "mm"),
+        Column("Ψ", "–"),
+        Column("P_s", "MPa"),
+        Column("P_d", "MPa"),
+        Column("P_sd", "MPa"),
+        Column("C_s", "–"),
+    ]
+    pressures = ("P_s", "P_d", "P_sd", "C_s")
+    rows = [
+        [
+            "inboard tripod",
+            _spec_cell(spec, "hertz", "n_rollers"),
+            _design_or_spec(report, "d_roller_mm", "design", "d_roller"),
+            _design_or_spec(report, "R_mm", "design", "R"),
+            _design_or_spec(report, "conformity", "hertz", "conformity"),
+            *(_spec_cell(spec, "hertz", k) for k in pressures),
+        ]
+    ]
+    notes = [
+        "n rollers or balls of diameter d on the track radius R (tripod) or pitch-centre radius "
+        "PCR (outboard); conformity Ψ = 2R_g/d; allowed contact pressures static P_s, "
+        "long-lasting dynamic P_d, short-lasting dynamic P_sd; safety coefficient C_s on the "
+        "pressure."
+    ]
+    if isinstance(report.get("halfshaft"), dict):
+        rows.append(
+            [
+                "outboard joint",
+                *(
+                    _spec_cell(spec, "outboard", k)
+                    for k in ("n_balls", "ball_diameter_mm", "pcr_mm", "conformity", *pressures)
+                ),
+            ]
+        )
+
+        def value(key, unit):
+            return f"{fmt(_spec_cell(spec, 'outboard', key))} {unit}"
+
+        notes.append(
+            f"Outboard joint: pressure angle ε {value('pressure_angle_deg', 'deg')}, oblique "
+            f"angle ζ {value('oblique_angle_deg', 'deg')}, longitudinal conformity χ_l "
+            f"{value('longitudinal_conformity', '–')}, life tolerance "
+            f"{value('tolerance', '–')}."
+        )
+    return Table("joints", "The joints' Hertz inputs", columns, rows, notes)
+
+
+def _sections(report):
+    """Each shaft section's geometry and safety coefficient as checked, and the material."""
+    spec = _get(report, "spec")
+    shaft = _get(spec, "shaft")
+    names = shaft.get("names") or []
+    design = report.get("design") if isinstance(report.get("design"), dict) else {}
+    columns = [
+        Column("section", kind="text"),
+        Column("Øe", "mm"),
+        Column("Øi", "mm"),
+        Column("hardened depth h", "mm"),
+        Column("transition t", "mm"),
+        Column("safety coefficient C_s", "–"),
+    ]
+
+    def entry(key, name):  # the design's where the optimiser moves it, else the spec's
+        free = f"shaft.{key}[{name}]"
+        if free in design:
+            return cell(design[free])
+        if name in names and isinstance(shaft.get(key), list):
+            return cell(shaft[key][names.index(name)])
+        return NotAvailable(f"the report's spec has no shaft.{key} of {name}")
+
+    rows = [
+        [
+            s["name"],
+            cell(s.get("outer_diameter_mm")),
+            cell(s.get("inner_diameter_mm")),
+            cell(s.get("hardened_depth_mm")),
+            entry("transition_depth_mm", s["name"]),
+            entry("safety", s["name"]),
+        ]
+        for s in _get(_halfshaft_section(report), "sections")
+    ]
+
+    def value(key, unit):
+        return f"{fmt(_spec_cell(spec, 'shaft', key))}{unit}"
+
+    notes = [
+        f"Material of every section: core strength σ_R,c {value('core_uts_MPa', ' MPa')}, "
+        f"surface strength σ_R,s {value('surface_uts_MPa', ' MPa')}, strength lost from the "
+        f"surface to the depth h Δ {value('depth_drop', ' –')}, fatigue ratio q = σ_R/σ_f "
+        f"{value('fatigue_ratio', ' –')}; allowed damage {value('allowed_damage', ' –')}. C_s "
+        "is inside τ_adm = σ_R/(C_s√3): the requirement τ_adm/τ ≥ 1 includes it."
+    ]
+    return Table("sections", "Shaft sections", columns, rows, notes)
 
 
 # Where the workbook is silent: (spec key, what it concerns, {reading: what it means}).
@@ -1294,7 +1450,9 @@ def table_dict(table) -> dict:
 # The validation document's tables: the customer's inputs, the verdict table (the report's
 # "validation" table, as in report.json and report.xlsx) and the readings where the sheet is silent.
 VALIDATION_SECTIONS = (
-    ("inputs", "The customer's inputs", _inputs),
+    ("inputs", "Vehicle, loads and use", _inputs),
+    ("joints", "The joints' Hertz inputs", _joints),
+    ("sections", "Shaft sections", _sections),
     _VALIDATION,
     ("readings", "Readings where the workbook is silent", _readings),
 )

@@ -1094,3 +1094,56 @@ def test_a_reliability_check_no_uncertain_input_affects_says_so():
     html = document.render_html({"reliability": rel})
     table = html[html.index('data-table="reliability"') :].split("</table>")[0]
     assert "(0)" not in table and table.count("not affected by the uncertain inputs") == 2
+
+
+def test_the_validation_document_identifies_the_halfshaft(run):
+    """validation.html named neither the outboard joint's geometry and Hertz inputs, nor each
+    shaft section's Øi, t, materials and C_s, nor the tripod's Hertz inputs, nor the vehicle's
+    load transfers and gear-use tables: its tables hold them now, each number with a unit, as
+    report.json's spec and halfshaft sections give them."""
+    _, body = run
+    spec, design = body["spec"], body["design"]
+    tables = document.tables(body, document.VALIDATION_SECTIONS)
+    hertz, outboard = spec["hertz"], spec["outboard"]
+    pressures = ("P_s", "P_d", "P_sd", "C_s")
+    assert tables["joints"].rows == [
+        ["inboard tripod", hertz["n_rollers"], design["d_roller_mm"], design["R_mm"]]
+        + [design["conformity"], *(hertz[k] for k in pressures)],
+        ["outboard joint", outboard["n_balls"], outboard["ball_diameter_mm"], outboard["pcr_mm"]]
+        + [outboard["conformity"], *(outboard[k] for k in pressures)],
+    ]
+    shaft = spec["shaft"]
+    expected = []
+    for s in body["halfshaft"]["sections"]:
+        i = shaft["names"].index(s["name"])
+        geometry = [s[k] for k in ("outer_diameter_mm", "inner_diameter_mm", "hardened_depth_mm")]
+        expected.append([s["name"], *geometry, shaft["transition_depth_mm"][i], shaft["safety"][i]])
+    assert tables["sections"].rows == expected
+    assert 1.3 in shaft["safety"]  # the outboard stem's, hidden by "≥ 1" before
+    material = tables["sections"].notes[0]
+    for key, unit in (("core_uts_MPa", "MPa"), ("surface_uts_MPa", "MPa")):
+        assert f"{document.fmt(shaft[key])} {unit}" in material
+    for key in ("depth_drop", "fatigue_ratio", "allowed_damage"):
+        assert f"{document.fmt(shaft[key])} –" in material
+    for name in ("joints", "sections"):  # a unit on every number
+        assert all(c.unit for c in tables[name].columns[1:])
+    inputs = {r[0]: r[1:] for r in tables["inputs"].rows}
+    vehicle = spec["vehicle"]
+    assert inputs["wheel-load transfer per unit overall ratio"] == [
+        vehicle["load_transfer_per_ratio_N"],
+        "N",
+    ]
+    assert inputs["wheel-load transfer in reverse"] == [vehicle["reverse_load_transfer_N"], "N"]
+    use = {k: v for k, v in inputs.items() if k.startswith("gear use")}
+    assert len(use) == 4 and all(unit == "%" for _, unit in use.values())
+    for key in ("use_T_mean_pct", "use_T_max_pct", "use_P_max_pct", "use_brake_pct"):
+        (shown,) = [v for k, (v, _) in use.items() if k.endswith(f"({key})")]
+        assert shown == ", ".join(document.fmt(float(x)) for x in vehicle["modes"][key])
+    assert all(unit for _, value, unit in tables["inputs"].rows if isinstance(value, float))
+    # The verdict rows say the C_s inside τ_adm.
+    static = [r[2] for r in tables["validation"].rows if r[1].startswith("static safety τ_adm")]
+    assert static == [f"≥ 1 (C_s {document.fmt(c)} in τ_adm)" for c in shaft["safety"]]
+    page = document.render_validation(body)
+    for name in ("joints", "sections", "inputs"):
+        assert f'data-table="{name}"' in page
+    assert f'data-value="{outboard["pcr_mm"]!r}"' in page
