@@ -1668,7 +1668,7 @@ def render_validation(report, figures=None) -> str:
         _environment()
         .get_template("validation.html.j2")
         .render(
-            title="Halfshaft validation",
+            title=VALIDATION_TITLE,
             source=safe.get("spec_source", "spec not named"),
             tables=tables(report, VALIDATION_SECTIONS),
             images=_images(figures or {}, VALIDATION_FIGURES),
@@ -1725,15 +1725,52 @@ def _append(sheet, values):
             cell.data_type = "s"
 
 
+VALIDATION_TITLE = "Halfshaft validation"
+
+
+def validation_identity(report) -> dict:
+    """What identifies the validation document (validation.html's header, report.xlsx's
+    validation sheet): ``{"document", "revision", "date", "specification", "computed with"}``
+    as text."""
+    safe = report if isinstance(report, dict) else {}
+    written = safe.get("written") if isinstance(safe.get("written"), dict) else {}
+    versions = safe.get("versions") if isinstance(safe.get("versions"), dict) else {}
+    return {
+        "document": f"{VALIDATION_TITLE} (validation.html): the halfshaft and its joints "
+        "(the workbook's sheets 7 and 8)",
+        "revision": f"Rev. {written.get('revision', '0')}",
+        "date": fmt(written.get("date", NotAvailable("not recorded"))),
+        "specification": str(safe.get("spec_source", "spec not named")),
+        "computed with": ", ".join(
+            f"{name} {fmt(versions.get(name, NotAvailable('not recorded')))}"
+            for name in ("tripodjax", "jax")
+        ),
+    }
+
+
+def _header_text(text):
+    """``text`` in a sheet's printed header or footer, its "&" not a code."""
+    return str(text).replace("&", "&&")
+
+
 def write_xlsx(report, path):
-    """The report's tables as a workbook at ``path``: a sheet per table, header row frozen."""
+    """The report's tables as a workbook at ``path``: a sheet per table, header row frozen.
+    The validation sheet names its document, revision, date and spec below its notes and in
+    its printed header and footer (with the page of the pages)."""
     from openpyxl import Workbook
     from openpyxl.styles import Font
 
     book = Workbook()
     book.remove(book.active)
+    identity = validation_identity(report)
     for table in tables(report).values():
         sheet = book.create_sheet(table.name[:31])
+        if table.name == "validation":
+            sheet.oddHeader.left.text = _header_text(
+                f"{VALIDATION_TITLE}: {identity['specification']}"
+            )
+            sheet.oddHeader.right.text = _header_text(f"{identity['revision']}, {identity['date']}")
+            sheet.oddFooter.right.text = "page &P of &N"
         if table.unavailable:
             _append(sheet, [f"{table.title}: not available ({table.unavailable})"])
             continue
@@ -1746,6 +1783,10 @@ def write_xlsx(report, path):
         for note in table.notes:
             sheet.append([])
             _append(sheet, [note])
+        if table.name == "validation":
+            sheet.append([])
+            for key, value in identity.items():
+                _append(sheet, [key, value])
         for i, column in enumerate(table.columns):
             width = (
                 max(len(column.label), *(len(fmt(r[i])) for r in table.rows))

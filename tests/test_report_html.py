@@ -1147,3 +1147,30 @@ def test_the_validation_document_identifies_the_halfshaft(run):
     for name in ("joints", "sections", "inputs"):
         assert f'data-table="{name}"' in page
     assert f'data-value="{outboard["pcr_mm"]!r}"' in page
+
+
+def test_the_validation_sheet_names_its_revision_date_and_spec(run, tmp_path):
+    """report.xlsx's validation sheet carried no revision, date or spec name (validation.html
+    does): they follow its notes, and its printed header and footer carry them too."""
+    _, body = run
+    revised = dict(body, written=dict(body["written"], revision="B & <x>"))
+    document.write_xlsx(revised, tmp_path / "r.xlsx")
+    from openpyxl import load_workbook
+
+    sheet = load_workbook(tmp_path / "r.xlsx")["validation"]
+    rows = [r[:2] for r in sheet.iter_rows(values_only=True)]
+    identity = dict(rows[-5:])
+    assert identity == {
+        "document": identity["document"],
+        "revision": "Rev. B & <x>",
+        "date": body["written"]["date"],
+        "specification": body["spec_source"],
+        "computed with": f"tripodjax {body['versions']['tripodjax']}, jax {body['versions']['jax']}",
+    }
+    assert identity["document"].startswith("Halfshaft validation")
+    page = document.render_validation(revised)  # the same words as the document's header
+    assert '<td id="revision">Rev. B &amp; &lt;x&gt;</td>' in page
+    assert sheet.oddHeader.left.text == f"Halfshaft validation: {body['spec_source']}"
+    assert sheet.oddHeader.right.text == f"Rev. B && <x>, {body['written']['date']}"
+    assert sheet.oddFooter.right.text == "page &P of &N"
+    assert read_sheets(tmp_path / "r.xlsx")["validation"]  # the table above, read as before
