@@ -371,6 +371,22 @@ def _passes(passed):
     return "passes" if passed else "fails"
 
 
+def fatigue_passed(section):
+    """A shaft section's fatigue verdict (bool): Miner's damage D ≤ the allowed damage, computed
+    successfully: the optimiser's requirement (shaft_fatigue, ln(allowed/D) ≥ 0), met at
+    D = allowed. report.json's ``fatigue_passed`` flag (D < allowed and computed) misses that
+    equality; it is taken as it is otherwise."""
+    if section.get("fatigue_passed"):
+        return True
+    damage, allowed = cell(section.get("damage")), cell(section.get("allowed_damage"))
+    return section.get("status") == "successful" and damage == allowed
+
+
+# The sense of a shaft section's fatigue requirement, as the requirements table's
+# shaft_fatigue rows write it (problem: ln(allowed/D) ≥ 0).
+FATIGUE_SENSE = "≤"
+
+
 def _halfshaft_section(report):
     halfshaft = report.get("halfshaft")
     if halfshaft is None:
@@ -403,9 +419,9 @@ def _halfshaft(report):
             [
                 s["name"],
                 "fatigue damage (Miner)",
-                f"< {fmt(cell(s.get('allowed_damage')))}",
+                f"{FATIGUE_SENSE} {fmt(cell(s.get('allowed_damage')))}",
                 damage,
-                _passes(bool(s.get("fatigue_passed"))),
+                _passes(fatigue_passed(s)),
             ]
         )
     o = _get(h, "outboard")
@@ -428,8 +444,9 @@ def _halfshaft(report):
         ]
     )
     torque = _get(h, "static_torque_Nm")
+    passed = all(r[4] == "passes" for r in rows)  # the rows' rule (fatigue met at D = allowed)
     notes = [
-        f"The halfshaft {'passes' if h.get('passed') else 'does NOT pass'}. Sections checked "
+        f"The halfshaft {'passes' if passed else 'does NOT pass'}. Sections checked "
         f"statically at M_max {fmt(cell(torque.get('forward')))} N·m forward and "
         f"{fmt(cell(torque.get('backward')))} N·m backward and in fatigue under the vehicle's "
         f"load → engine-brake cycles (reading {h.get('reading', 'not given')}); the outboard "
@@ -562,8 +579,12 @@ def _tripod_checks(report):
     return rows
 
 
-def _halfshaft_checks(halfshaft):
-    """The verdict table's rows of the outboard joint and of each shaft section."""
+def _halfshaft_checks(halfshaft, spec=None):
+    """The verdict table's rows of the outboard joint and of each shaft section (``spec``: the
+    report's, for each section's safety coefficient C_s)."""
+    shaft = (spec or {}).get("shaft") if isinstance(spec, dict) else None
+    shaft = shaft if isinstance(shaft, dict) else {}
+    names, safeties = shaft.get("names") or [], shaft.get("safety") or []
     o = _get(halfshaft, "outboard")
     required = cell(o.get("required_km"))
     km = cell(o.get("life_km"))
@@ -601,11 +622,14 @@ def _halfshaft_checks(halfshaft):
             f"h {fmt(cell(s.get('hardened_depth_mm')))} mm)"
         )
         safety, damage = cell(s.get("static_safety")), cell(s.get("damage"))
+        static = f"≥ {fmt(cell(s.get('required_static_safety')))}"
+        if s["name"] in names and len(safeties) == len(names):  # the coefficient inside τ_adm
+            static += f" (C_s {fmt(cell(safeties[names.index(s['name'])]))} in τ_adm)"
         rows.append(
             [
                 part,
                 "static safety τ_adm/τ, through the hardened layer",
-                f"≥ {fmt(cell(s.get('required_static_safety')))}",
+                static,
                 safety,
                 "–",
                 safety,
@@ -616,11 +640,11 @@ def _halfshaft_checks(halfshaft):
             [
                 part,
                 "fatigue damage (Goodman, semi-log S–N, Miner)",
-                f"< {fmt(cell(s.get('allowed_damage')))}",
+                f"{FATIGUE_SENSE} {fmt(cell(s.get('allowed_damage')))}",
                 damage,
                 "–",
                 damage,
-                _passes(bool(s.get("fatigue_passed"))),
+                _passes(fatigue_passed(s)),
             ]
         )
     return rows
@@ -646,7 +670,7 @@ def _validation(report):
             f"The outboard joint and the shaft sections are not checked: {_ABSENT['halfshaft']}."
         )
     else:
-        rows += _halfshaft_checks(halfshaft)
+        rows += _halfshaft_checks(halfshaft, report.get("spec"))
         torque = _get(halfshaft, "static_torque_Nm")
         notes.append(
             f"Static checks at M_max {fmt(cell(torque.get('forward')))} N·m forward and "
@@ -749,6 +773,27 @@ def _forces(report):
     return Table("forces", "Forces inside the joint", columns, rows, notes)
 
 
+UNAFFECTED = "not affected by the uncertain inputs"
+
+
+def _unaffected(requirement):
+    """β's text, +∞ or −∞, for a reliability requirement that no uncertain input affects
+    (its margin's gradient is 0 at the mean: FORM's β is ±∞, null in report.json, its
+    probability exactly 0 or 1 and every importance 0), else None (a β that is null because it
+    could not be computed keeps its reason)."""
+    importance = requirement.get("importance")
+    p = requirement.get("probability_form")
+    if requirement.get("beta_form") is not None or not isinstance(importance, dict):
+        return None
+    if not importance or any(v != 0 for v in importance.values()):
+        return None
+    if isinstance(p, bool) or p not in (0, 1) or requirement.get("form_converged") is False:
+        return None
+    if p == 0:
+        return f"+∞: {UNAFFECTED}"
+    return f"−∞: {UNAFFECTED} (always missed)"
+
+
 def _reliability(report):
     rel = report.get("reliability")
     if rel is None:
@@ -769,17 +814,24 @@ def _reliability(report):
         interval = r.get("mc_interval_95") or [None, None]
         importance = r.get("importance") or {}
         top = max(importance, key=lambda k: abs(importance[k] or 0.0), default=None)
+        beta, agree = cell(r.get("beta_form")), bool(r.get("agree"))
+        largest = f"{top} ({fmt(cell(importance[top]), 3)})" if top else "–"
+        if top and importance[top] == 0:  # no input moves the margin: none is the largest
+            largest = "none (every importance is 0)"
+        unaffected = _unaffected(r)
+        if unaffected is not None:  # β = ±∞ (null in the JSON): no FORM estimate to agree with
+            beta, agree = unaffected, "not compared (β infinite)"
         rows.append(
             [
                 r["name"],
-                cell(r.get("beta_form")),
+                beta,
                 cell(r.get("probability_form")),
                 cell(r.get("probability_mc")),
                 cell(interval[0]),
                 cell(interval[1]),
                 cell(r.get("samples")),
-                bool(r.get("agree")),
-                f"{top} ({fmt(cell(importance[top]), 3)})" if top else "–",
+                agree,
+                largest,
             ]
         )
     interval = rel.get("system_interval_95") or [None, None]
@@ -1096,6 +1148,15 @@ _VEHICLE_INPUTS = (
     (("vehicle", "engine_speed_rpm"), "engine speed at the same conditions", "rpm"),
     (("vehicle", "gears", "ratios"), "overall ratios (gear × final drive), 1st gear first", "–"),
     (("vehicle", "gears", "reverse"), "overall ratio in reverse", "–"),
+    (("vehicle", "load_transfer_per_ratio_N"), "wheel-load transfer per unit overall ratio", "N"),
+    (("vehicle", "reverse_load_transfer_N"), "wheel-load transfer in reverse", "N"),
+)
+# The gear-use tables of [vehicle.modes]: (key, engine condition).
+_USE_TABLES = (
+    ("use_T_mean_pct", "mean torque"),
+    ("use_T_max_pct", "maximum torque"),
+    ("use_P_max_pct", "maximum power"),
+    ("use_brake_pct", "engine brake"),
 )
 _USE_INPUTS = (
     (("loads", "M_max"), "largest forward torque on the shaft, as given", "N·m"),
@@ -1121,6 +1182,22 @@ def _conditions_text(conditions):
     )
 
 
+def _use_text(names, use):
+    """A gear-use table: one list for every mode, or a list per mode (named)."""
+    if isinstance(use, list) and use and all(isinstance(u, list) for u in use):
+        return "; ".join(f"{n}: {_listed(u)}" for n, u in zip(names, use, strict=False))
+    return _listed(use)
+
+
+def _spec_cell(spec, *path):
+    """The spec's value at ``path`` as a cell (a list as its text), or the reason it is not
+    there (a report of an earlier version): one missing input never hides the others."""
+    try:
+        return _listed(_get(spec, *path))
+    except NotAvailable as reason:
+        return reason
+
+
 def _inputs(report):
     spec = _get(report, "spec")
     columns = [Column("input", kind="text"), Column("value"), Column("unit", kind="text")]
@@ -1134,7 +1211,7 @@ def _inputs(report):
     # are both given (optimize.spec).
     if "vehicle" in spec and ("M_max" not in _get(spec, "loads") or not explicit):
         for path, name, unit in _VEHICLE_INPUTS:
-            rows.append([name, _listed(_get(spec, *path)), unit])
+            rows.append([name, _spec_cell(spec, *path), unit])
         modes = _get(spec, "vehicle", "modes")
         rows.append(
             [
@@ -1143,6 +1220,18 @@ def _inputs(report):
                 "",
             ]
         )
+        for key, condition in _USE_TABLES:
+            use = modes.get(key)
+            rows.append(
+                [
+                    f"gear use at {condition}: % of the mode's revolutions, 1st gear first, "
+                    f"reverse last ({key})",
+                    NotAvailable(f"the report has no spec.vehicle.modes.{key}")
+                    if use is None
+                    else _use_text(modes["names"], use),
+                    "%",
+                ]
+            )
     else:
         notes.append(
             "No vehicle is used: the spec gives the largest torque (loads.M_max) and the load "
@@ -1169,7 +1258,119 @@ def _inputs(report):
                 "",
             ]
         )
-    return Table("inputs", "The customer's inputs", columns, rows, notes)
+    return Table("inputs", "Vehicle, loads and use", columns, rows, notes)
+
+
+def _design_or_spec(report, key, *path):
+    """A joint's input at the design (``report["design"][key]``, where the optimiser moves it)
+    or the spec's (``path``), as a cell."""
+    design = report.get("design")
+    if isinstance(design, dict) and key in design:
+        return cell(design[key])
+    return _spec_cell(_get(report, "spec"), *path)
+
+
+def _joints(report):
+    """The joints' Hertz inputs: the tripod's (its design R, d, Ψ and the [hertz] pressures)
+    and, with the halfshaft's checks, the outboard ball joint's ([outboard])."""
+    spec = _get(report, "spec")
+    columns = [
+        Column("joint", kind="text"),
+        Column("n", "–"),
+        Column("d", "mm"),
+        Column("R or PCR", "mm"),
+        Column("Ψ", "–"),
+        Column("P_s", "MPa"),
+        Column("P_d", "MPa"),
+        Column("P_sd", "MPa"),
+        Column("C_s", "–"),
+    ]
+    pressures = ("P_s", "P_d", "P_sd", "C_s")
+    rows = [
+        [
+            "inboard tripod",
+            _spec_cell(spec, "hertz", "n_rollers"),
+            _design_or_spec(report, "d_roller_mm", "design", "d_roller"),
+            _design_or_spec(report, "R_mm", "design", "R"),
+            _design_or_spec(report, "conformity", "hertz", "conformity"),
+            *(_spec_cell(spec, "hertz", k) for k in pressures),
+        ]
+    ]
+    notes = [
+        "n rollers or balls of diameter d on the track radius R (tripod) or pitch-centre radius "
+        "PCR (outboard); conformity Ψ = 2R_g/d; allowed contact pressures static P_s, "
+        "long-lasting dynamic P_d, short-lasting dynamic P_sd; safety coefficient C_s on the "
+        "pressure."
+    ]
+    if isinstance(report.get("halfshaft"), dict):
+        rows.append(
+            [
+                "outboard joint",
+                *(
+                    _spec_cell(spec, "outboard", k)
+                    for k in ("n_balls", "ball_diameter_mm", "pcr_mm", "conformity", *pressures)
+                ),
+            ]
+        )
+
+        def value(key, unit):
+            return f"{fmt(_spec_cell(spec, 'outboard', key))} {unit}"
+
+        notes.append(
+            f"Outboard joint: pressure angle ε {value('pressure_angle_deg', 'deg')}, oblique "
+            f"angle ζ {value('oblique_angle_deg', 'deg')}, longitudinal conformity χ_l "
+            f"{value('longitudinal_conformity', '–')}, life tolerance "
+            f"{value('tolerance', '–')}."
+        )
+    return Table("joints", "The joints' Hertz inputs", columns, rows, notes)
+
+
+def _sections(report):
+    """Each shaft section's geometry and safety coefficient as checked, and the material."""
+    spec = _get(report, "spec")
+    shaft = _get(spec, "shaft")
+    names = shaft.get("names") or []
+    design = report.get("design") if isinstance(report.get("design"), dict) else {}
+    columns = [
+        Column("section", kind="text"),
+        Column("Øe", "mm"),
+        Column("Øi", "mm"),
+        Column("hardened depth h", "mm"),
+        Column("transition t", "mm"),
+        Column("safety coefficient C_s", "–"),
+    ]
+
+    def entry(key, name):  # the design's where the optimiser moves it, else the spec's
+        free = f"shaft.{key}[{name}]"
+        if free in design:
+            return cell(design[free])
+        if name in names and isinstance(shaft.get(key), list):
+            return cell(shaft[key][names.index(name)])
+        return NotAvailable(f"the report's spec has no shaft.{key} of {name}")
+
+    rows = [
+        [
+            s["name"],
+            cell(s.get("outer_diameter_mm")),
+            cell(s.get("inner_diameter_mm")),
+            cell(s.get("hardened_depth_mm")),
+            entry("transition_depth_mm", s["name"]),
+            entry("safety", s["name"]),
+        ]
+        for s in _get(_halfshaft_section(report), "sections")
+    ]
+
+    def value(key, unit):
+        return f"{fmt(_spec_cell(spec, 'shaft', key))}{unit}"
+
+    notes = [
+        f"Material of every section: core strength σ_R,c {value('core_uts_MPa', ' MPa')}, "
+        f"surface strength σ_R,s {value('surface_uts_MPa', ' MPa')}, strength lost from the "
+        f"surface to the depth h Δ {value('depth_drop', ' –')}, fatigue ratio q = σ_R/σ_f "
+        f"{value('fatigue_ratio', ' –')}; allowed damage {value('allowed_damage', ' –')}. C_s "
+        "is inside τ_adm = σ_R/(C_s√3): the requirement τ_adm/τ ≥ 1 includes it."
+    ]
+    return Table("sections", "Shaft sections", columns, rows, notes)
 
 
 # Where the workbook is silent: (spec key, what it concerns, {reading: what it means}).
@@ -1249,7 +1450,9 @@ def table_dict(table) -> dict:
 # The validation document's tables: the customer's inputs, the verdict table (the report's
 # "validation" table, as in report.json and report.xlsx) and the readings where the sheet is silent.
 VALIDATION_SECTIONS = (
-    ("inputs", "The customer's inputs", _inputs),
+    ("inputs", "Vehicle, loads and use", _inputs),
+    ("joints", "The joints' Hertz inputs", _joints),
+    ("sections", "Shaft sections", _sections),
     _VALIDATION,
     ("readings", "Readings where the workbook is silent", _readings),
 )
@@ -1363,6 +1566,21 @@ def _images(figures, wanted):
     return images
 
 
+def css_string(text):
+    """``text`` as a CSS string literal (for ``content:`` in a style element): every character
+    but letters, digits and plain punctuation as a hex escape, so that no quote, backslash,
+    ``<`` or line end of a spec name or revision ends the string or the style element (the
+    space after each escape is the escape's own)."""
+    import markupsafe
+
+    safe = set(" .,:;-_()/+#")
+    body = "".join(
+        ch if (ch.isascii() and ch.isalnum()) or ch in safe else f"\\{ord(ch):06x} "
+        for ch in str(text)
+    )
+    return markupsafe.Markup(f'"{body}"')
+
+
 @functools.cache
 def _environment():
     import jinja2
@@ -1376,6 +1594,7 @@ def _environment():
     )
     env.filters["fmt"] = fmt
     env.filters["exact"] = repr  # full precision in data-value: what a reader can check
+    env.filters["css_string"] = css_string
     env.tests["unavailable"] = lambda v: isinstance(v, NotAvailable)
     return env
 
@@ -1449,7 +1668,7 @@ def render_validation(report, figures=None) -> str:
         _environment()
         .get_template("validation.html.j2")
         .render(
-            title="Halfshaft validation",
+            title=VALIDATION_TITLE,
             source=safe.get("spec_source", "spec not named"),
             tables=tables(report, VALIDATION_SECTIONS),
             images=_images(figures or {}, VALIDATION_FIGURES),
@@ -1506,15 +1725,52 @@ def _append(sheet, values):
             cell.data_type = "s"
 
 
+VALIDATION_TITLE = "Halfshaft validation"
+
+
+def validation_identity(report) -> dict:
+    """What identifies the validation document (validation.html's header, report.xlsx's
+    validation sheet): ``{"document", "revision", "date", "specification", "computed with"}``
+    as text."""
+    safe = report if isinstance(report, dict) else {}
+    written = safe.get("written") if isinstance(safe.get("written"), dict) else {}
+    versions = safe.get("versions") if isinstance(safe.get("versions"), dict) else {}
+    return {
+        "document": f"{VALIDATION_TITLE} (validation.html): the halfshaft and its joints "
+        "(the workbook's sheets 7 and 8)",
+        "revision": f"Rev. {written.get('revision', '0')}",
+        "date": fmt(written.get("date", NotAvailable("not recorded"))),
+        "specification": str(safe.get("spec_source", "spec not named")),
+        "computed with": ", ".join(
+            f"{name} {fmt(versions.get(name, NotAvailable('not recorded')))}"
+            for name in ("tripodjax", "jax")
+        ),
+    }
+
+
+def _header_text(text):
+    """``text`` in a sheet's printed header or footer, its "&" not a code."""
+    return str(text).replace("&", "&&")
+
+
 def write_xlsx(report, path):
-    """The report's tables as a workbook at ``path``: a sheet per table, header row frozen."""
+    """The report's tables as a workbook at ``path``: a sheet per table, header row frozen.
+    The validation sheet names its document, revision, date and spec below its notes and in
+    its printed header and footer (with the page of the pages)."""
     from openpyxl import Workbook
     from openpyxl.styles import Font
 
     book = Workbook()
     book.remove(book.active)
+    identity = validation_identity(report)
     for table in tables(report).values():
         sheet = book.create_sheet(table.name[:31])
+        if table.name == "validation":
+            sheet.oddHeader.left.text = _header_text(
+                f"{VALIDATION_TITLE}: {identity['specification']}"
+            )
+            sheet.oddHeader.right.text = _header_text(f"{identity['revision']}, {identity['date']}")
+            sheet.oddFooter.right.text = "page &P of &N"
         if table.unavailable:
             _append(sheet, [f"{table.title}: not available ({table.unavailable})"])
             continue
@@ -1527,6 +1783,10 @@ def write_xlsx(report, path):
         for note in table.notes:
             sheet.append([])
             _append(sheet, [note])
+        if table.name == "validation":
+            sheet.append([])
+            for key, value in identity.items():
+                _append(sheet, [key, value])
         for i, column in enumerate(table.columns):
             width = (
                 max(len(column.label), *(len(fmt(r[i])) for r in table.rows))

@@ -157,7 +157,7 @@ core_uts_MPa = 690.0        # core ultimate strength σ_R,c (C53, 42CrMo4)
 surface_uts_MPa = 2180.0    # surface ultimate strength σ_R,s (from the micro-hardness)
 depth_drop = 0.10           # strength lost from the surface to the depth h
 fatigue_ratio = 1.6         # UTS / fatigue limit (the rear's 1.6; 2 where the sheet says so)
-allowed_damage = 1.0        # a section passes in fatigue when Miner's sum is below this
+allowed_damage = 1.0        # a section passes in fatigue when Miner's sum is at most this
 reading = "consistent"      # "consistent" or "workbook" (the sheet's readings, docs/physics.md)
 
 [outboard]
@@ -210,7 +210,7 @@ d_roller = [20.0, 70.0]  # roller diameter [mm]
 [constraints]
 # max_<q> / min_<q> for any quantity q; the Hertz static capacity (≥ shock_factor · M_max)
 # and the life (≥ required_km) are always required, and with a [vehicle] the rest of the
-# halfshaft: each [shaft] section's static safety ≥ 1 and damage < shaft.allowed_damage, the
+# halfshaft: each [shaft] section's static safety ≥ 1 and damage ≤ shaft.allowed_damage, the
 # [outboard] joint's M_s / M_max ≥ shock_factor and life ≥ required_km.
 min_R_over_d = 0.63      # experience range for tripods (workbook)
 max_R_over_d = 0.83
@@ -310,7 +310,7 @@ QUANTITIES = {
     "shaft_damage": (
         "–",
         "the largest fatigue damage of the [shaft] sections (Miner's sum at r_o and r_TR; "
-        "required < shaft.allowed_damage); per section as shaft_damage[<name>]",
+        "required ≤ shaft.allowed_damage); per section as shaft_damage[<name>]",
     ),
     "outboard_static_safety": (
         "–",

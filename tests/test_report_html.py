@@ -5,6 +5,8 @@ import json
 import math
 import os
 import re
+import shutil
+import subprocess
 import sys
 import tempfile
 import time
@@ -802,6 +804,29 @@ def test_the_validation_document_says_why_a_part_is_missing(run):
         assert "Not available:" in document.render_validation(broken)
 
 
+def printed_margins(pdf_path, pages, body):
+    """Each printed page of validation.html says its page of the pages, the document and its
+    revision (CSS @page margin boxes; read back with pdftotext where it is installed, else the
+    CSS that prints them is checked)."""
+    revision = f"Rev. {body['written'].get('revision', '0')}"
+    html = document.render_validation(body)
+    assert '@bottom-right { content: "page " counter(page) " of " counter(pages);' in html
+    if shutil.which("pdftotext") is None:
+        assert f"@top-right {{ content: {document.css_string(revision)[:-1]}" in html
+        return
+    for page in range(1, pages + 1):
+        done = subprocess.run(
+            ["pdftotext", "-f", str(page), "-l", str(page), str(pdf_path), "-"],
+            capture_output=True,
+            text=True,
+            check=True,
+        )
+        text = " ".join(done.stdout.split())
+        assert f"page {page} of {pages}" in text, text[-200:]
+        assert f"Halfshaft validation, {revision}" in text
+        assert f"Halfshaft validation: {body['spec_source']}" in text
+
+
 @needs_chromium
 def test_validation_prints_on_at_most_4_a4_pages_with_the_reports_verdicts(run, tmp_path):
     out, body = run
@@ -857,6 +882,7 @@ def test_validation_prints_on_at_most_4_a4_pages_with_the_reports_verdicts(run, 
         assert overall == expected["validation"]["notes"][0]
         pdf = pdf_path.read_bytes()
         assert pdf[:5] == b"%PDF-" and 1 <= pdf_pages(pdf) <= 4, pdf_pages(pdf)
+        printed_margins(pdf_path, pdf_pages(pdf), expected)
         boxes = {
             tuple(map(float, b.split())) for b in re.findall(rb"/MediaBox\s*\[([^\]]*)\]", pdf)
         }
@@ -1020,3 +1046,158 @@ def test_a_front_of_one_design_keeps_readable_axes_and_its_label_inside():
     fig.canvas.draw()
     box = label.get_window_extent()
     assert 0 <= box.x0 and box.x1 <= fig.bbox.width  # inside the figure
+
+
+def test_shaft_fatigue_at_the_allowed_damage_passes_in_both_documents(run):
+    """report.html wrote "≤ 1" (the optimiser's margin ln(allowed/D) ≥ 0, met at 0) and
+    validation.html "< 1" with a failing verdict at D = allowed: one rule now, D ≤ allowed, in
+    both documents and the verdict."""
+    _, body = run
+    at = copy.deepcopy(body)
+    section = at["halfshaft"]["sections"][0]
+    allowed = section["allowed_damage"]
+    # as report.json's halfshaft section writes it at D = allowed (its flag is D < allowed)
+    section.update(damage=allowed, fatigue_passed=False, status="successful")
+    name = section["name"]
+    sense = body["constraints"][f"shaft_fatigue[{name}]"]["sense"]
+    assert sense == "≤" and math.log(allowed / section["damage"]) >= 0  # the optimiser's margin
+    requirement = f"{sense} {document.fmt(allowed)}"
+
+    def fatigue_rows(report):
+        validation = document.tables(report, document.VALIDATION_SECTIONS)["validation"]
+        halfshaft = document.tables(report)["halfshaft"]
+        return (
+            [r for r in validation.rows if r[0].startswith(f"{name} (") and "fatigue" in r[1]][0],
+            [r for r in halfshaft.rows if r[0] == name and "fatigue" in r[1]][0],
+            validation.notes[0],
+        )
+
+    validation, halfshaft, verdict = fatigue_rows(at)
+    assert validation[2] == halfshaft[2] == requirement
+    assert validation[6] == halfshaft[4] == "passes"
+    assert verdict == "Every check passes."  # the default halfshaft's other checks pass
+    assert f"<td>{requirement}</td>" in document.render_validation(at)
+    assert f"<td>{requirement}</td>" in document.render_html(at)
+    above = copy.deepcopy(at)
+    above["halfshaft"]["sections"][0]["damage"] = allowed * (1 + 1e-12)
+    failed = copy.deepcopy(at)
+    failed["halfshaft"]["sections"][0]["status"] = "nonfinite"
+    for report_ in (above, failed):
+        validation, halfshaft, verdict = fatigue_rows(report_)
+        assert validation[6] == halfshaft[4] == "fails" and verdict.startswith("Not validated")
+
+
+def test_a_reliability_check_no_uncertain_input_affects_says_so():
+    """A check whose margin no uncertain input moves (FORM's β = ±∞, null in report.json, every
+    importance 0) showed "β not available (null …)", "largest importance R (0)" and "FORM and
+    MC agree: yes"; it says it is not affected now, and claims no agreement."""
+    flat = {
+        "name": "shaft_static[A-A]",
+        "beta_form": None,
+        "probability_form": 0.0,
+        "probability_sorm": None,
+        "importance": {"R": 0.0, "hertz.P_d": 0.0},
+        "form_converged": True,
+        "probability_mc": 0.0,
+        "mc_interval_95": [0.0, 3.8e-05],
+        "samples": 100000,
+        "agree": True,
+        "agree_basis": "form",
+    }
+    missed = dict(flat, name="outboard_life", probability_form=1.0, probability_mc=1.0)
+    unknown = dict(flat, name="life", probability_form=None, importance={"R": None})
+    rel = copy.deepcopy(RELIABILITY)
+    rel["requirements"] += [flat, missed, unknown]
+    rows = {r[0]: r for r in document.tables({"reliability": rel})["reliability"].rows[1:]}
+    affected = document.tables({"reliability": RELIABILITY})["reliability"].rows[0]
+    assert affected[7] is True and affected[8] == "loads.M_max (0.98)"  # as before
+    assert rows["shaft_static[A-A]"][1] == "+∞: not affected by the uncertain inputs"
+    assert rows["outboard_life"][1].startswith("−∞: not affected by the uncertain inputs")
+    for name in ("shaft_static[A-A]", "outboard_life"):
+        row = rows[name]
+        assert row[7] == "not compared (β infinite)" and row[8] == "none (every importance is 0)"
+    # A β that is null because FORM could not compute it keeps its reason.
+    assert isinstance(rows["life"][1], document.NotAvailable)
+    html = document.render_html({"reliability": rel})
+    table = html[html.index('data-table="reliability"') :].split("</table>")[0]
+    assert "(0)" not in table and table.count("not affected by the uncertain inputs") == 2
+
+
+def test_the_validation_document_identifies_the_halfshaft(run):
+    """validation.html named neither the outboard joint's geometry and Hertz inputs, nor each
+    shaft section's Øi, t, materials and C_s, nor the tripod's Hertz inputs, nor the vehicle's
+    load transfers and gear-use tables: its tables hold them now, each number with a unit, as
+    report.json's spec and halfshaft sections give them."""
+    _, body = run
+    spec, design = body["spec"], body["design"]
+    tables = document.tables(body, document.VALIDATION_SECTIONS)
+    hertz, outboard = spec["hertz"], spec["outboard"]
+    pressures = ("P_s", "P_d", "P_sd", "C_s")
+    assert tables["joints"].rows == [
+        ["inboard tripod", hertz["n_rollers"], design["d_roller_mm"], design["R_mm"]]
+        + [design["conformity"], *(hertz[k] for k in pressures)],
+        ["outboard joint", outboard["n_balls"], outboard["ball_diameter_mm"], outboard["pcr_mm"]]
+        + [outboard["conformity"], *(outboard[k] for k in pressures)],
+    ]
+    shaft = spec["shaft"]
+    expected = []
+    for s in body["halfshaft"]["sections"]:
+        i = shaft["names"].index(s["name"])
+        geometry = [s[k] for k in ("outer_diameter_mm", "inner_diameter_mm", "hardened_depth_mm")]
+        expected.append([s["name"], *geometry, shaft["transition_depth_mm"][i], shaft["safety"][i]])
+    assert tables["sections"].rows == expected
+    assert 1.3 in shaft["safety"]  # the outboard stem's, hidden by "≥ 1" before
+    material = tables["sections"].notes[0]
+    for key, unit in (("core_uts_MPa", "MPa"), ("surface_uts_MPa", "MPa")):
+        assert f"{document.fmt(shaft[key])} {unit}" in material
+    for key in ("depth_drop", "fatigue_ratio", "allowed_damage"):
+        assert f"{document.fmt(shaft[key])} –" in material
+    for name in ("joints", "sections"):  # a unit on every number
+        assert all(c.unit for c in tables[name].columns[1:])
+    inputs = {r[0]: r[1:] for r in tables["inputs"].rows}
+    vehicle = spec["vehicle"]
+    assert inputs["wheel-load transfer per unit overall ratio"] == [
+        vehicle["load_transfer_per_ratio_N"],
+        "N",
+    ]
+    assert inputs["wheel-load transfer in reverse"] == [vehicle["reverse_load_transfer_N"], "N"]
+    use = {k: v for k, v in inputs.items() if k.startswith("gear use")}
+    assert len(use) == 4 and all(unit == "%" for _, unit in use.values())
+    for key in ("use_T_mean_pct", "use_T_max_pct", "use_P_max_pct", "use_brake_pct"):
+        (shown,) = [v for k, (v, _) in use.items() if k.endswith(f"({key})")]
+        assert shown == ", ".join(document.fmt(float(x)) for x in vehicle["modes"][key])
+    assert all(unit for _, value, unit in tables["inputs"].rows if isinstance(value, float))
+    # The verdict rows say the C_s inside τ_adm.
+    static = [r[2] for r in tables["validation"].rows if r[1].startswith("static safety τ_adm")]
+    assert static == [f"≥ 1 (C_s {document.fmt(c)} in τ_adm)" for c in shaft["safety"]]
+    page = document.render_validation(body)
+    for name in ("joints", "sections", "inputs"):
+        assert f'data-table="{name}"' in page
+    assert f'data-value="{outboard["pcr_mm"]!r}"' in page
+
+
+def test_the_validation_sheet_names_its_revision_date_and_spec(run, tmp_path):
+    """report.xlsx's validation sheet carried no revision, date or spec name (validation.html
+    does): they follow its notes, and its printed header and footer carry them too."""
+    _, body = run
+    revised = dict(body, written=dict(body["written"], revision="B & <x>"))
+    document.write_xlsx(revised, tmp_path / "r.xlsx")
+    from openpyxl import load_workbook
+
+    sheet = load_workbook(tmp_path / "r.xlsx")["validation"]
+    rows = [r[:2] for r in sheet.iter_rows(values_only=True)]
+    identity = dict(rows[-5:])
+    assert identity == {
+        "document": identity["document"],
+        "revision": "Rev. B & <x>",
+        "date": body["written"]["date"],
+        "specification": body["spec_source"],
+        "computed with": f"tripodjax {body['versions']['tripodjax']}, jax {body['versions']['jax']}",
+    }
+    assert identity["document"].startswith("Halfshaft validation")
+    page = document.render_validation(revised)  # the same words as the document's header
+    assert '<td id="revision">Rev. B &amp; &lt;x&gt;</td>' in page
+    assert sheet.oddHeader.left.text == f"Halfshaft validation: {body['spec_source']}"
+    assert sheet.oddHeader.right.text == f"Rev. B && <x>, {body['written']['date']}"
+    assert sheet.oddFooter.right.text == "page &P of &N"
+    assert read_sheets(tmp_path / "r.xlsx")["validation"]  # the table above, read as before
