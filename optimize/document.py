@@ -374,8 +374,8 @@ def _passes(passed):
 def fatigue_passed(section):
     """A shaft section's fatigue verdict (bool): Miner's damage D ≤ the allowed damage, computed
     successfully: the optimiser's requirement (shaft_fatigue, ln(allowed/D) ≥ 0), met at
-    D = allowed. report.json's ``fatigue_passed`` flag (D < allowed and computed) misses that
-    equality; it is taken as it is otherwise."""
+    D = allowed. report.json's ``fatigue_passed`` flag is that rule; a report of an older
+    version (D < allowed) is read by the rule too."""
     if section.get("fatigue_passed"):
         return True
     damage, allowed = cell(section.get("damage")), cell(section.get("allowed_damage"))

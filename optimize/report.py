@@ -626,7 +626,7 @@ def figure_shaft_damage(halfshaft):
     ax.set_xticks(range(len(gears)), [label(g, 8) for g in gears])
     ax.set(
         title="shaft sections: fatigue damage by gear (Miner's sum over the required mileage; "
-        f"allowed total < {sections[0]['allowed_damage']:g})",
+        f"allowed total ≤ {sections[0]['allowed_damage']:g})",
         xlabel="gear",
         ylabel="damage [–]",
     )

@@ -198,13 +198,13 @@ def _halfshaft(structure, values, x):
 
 
 def _requirement(name, value, relation, limit, unit=""):
-    """(passed, words) of ``value relation limit`` (``relation`` "≥" or "<"), the numbers as
+    """(passed, words) of ``value relation limit`` (``relation`` "≥" or "≤"), the numbers as
     `_apart` writes them (never "1 < 1" for a safety of 0.9998, nor "100000 km < 100000 km"). A
     value that is not finite passes nothing: the words say it is not finite."""
     if not math.isfinite(value):
         return False, f"{name} not finite ({value!r})"
-    passed = value >= limit if relation == "≥" else value < limit
-    opposite = {"≥": "<", "<": "≥"}[relation]
+    passed = {"≥": value >= limit, "≤": value <= limit}[relation]
+    opposite = {"≥": "<", "≤": ">"}[relation]
     shown, bound = _apart(value, limit, "f" if unit == " km" else "g")
     return passed, f"{name} {shown}{unit} {relation if passed else opposite} {bound}{unit}"
 
@@ -292,7 +292,7 @@ def halfshaft_report(spec: Spec, design: Mapping[str, float] | None = None) -> d
         damage = max(outer, core)
         code = int(max(np.max(out["static_result"][i]), np.max(out["fatigue_result"][i])))
         static = _requirement("static safety", safety, "≥", 1.0)
-        fatigue = _requirement("damage", damage, "<", allowed)
+        fatigue = _requirement("damage", damage, "≤", allowed)  # the optimiser's ln(allowed/D) ≥ 0
         sections.append(
             {
                 "name": name,

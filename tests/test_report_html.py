@@ -1056,7 +1056,7 @@ def test_shaft_fatigue_at_the_allowed_damage_passes_in_both_documents(run):
     at = copy.deepcopy(body)
     section = at["halfshaft"]["sections"][0]
     allowed = section["allowed_damage"]
-    # as report.json's halfshaft section writes it at D = allowed (its flag is D < allowed)
+    # as an older report.json's halfshaft section wrote it at D = allowed (its flag: D < allowed)
     section.update(damage=allowed, fatigue_passed=False, status="successful")
     name = section["name"]
     sense = body["constraints"][f"shaft_fatigue[{name}]"]["sense"]

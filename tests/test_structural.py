@@ -150,7 +150,7 @@ def test_a_failing_section_is_named_with_its_check():
     c_c = report["sections"][2]
     assert not c_c["fatigue_passed"] and c_c["damage"] > 1
     assert c_c["result"] == (
-        f"fails: static safety {c_c['static_safety']:.3g} < 1; damage {c_c['damage']:.3g} ≥ 1"
+        f"fails: static safety {c_c['static_safety']:.3g} < 1; damage {c_c['damage']:.3g} > 1"
     )
     assert not report["passed"]
     from tripodjax.optimize import structural
@@ -266,8 +266,8 @@ def test_a_reverse_that_lifts_the_wheel_is_checked_forward_alone():
         (("static safety", 1.549, "≥", 1.1), (True, "static safety 1.55 ≥ 1.1")),
         (("life", 99999.6, "≥", 1e5, " km"), (False, "life 99999.6 km < 100000.0 km")),
         (("life", 65811.3, "≥", 1e5, " km"), (False, "life 65811 km < 100000 km")),
-        (("damage", 1.0, "<", 1.0), (False, "damage 1 ≥ 1")),  # equal: the limit itself fails
-        (("damage", 0.9999999, "<", 1.0), (True, "damage 0.9999999 < 1")),
+        (("damage", 1.0, "≤", 1.0), (True, "damage 1 ≤ 1")),  # the limit itself is met
+        (("damage", 1.0000001, "≤", 1.0), (False, "damage 1.0000001 > 1")),
     ],
 )
 def test_a_verdicts_words_never_round_the_value_onto_its_limit(args, words):
