@@ -978,7 +978,11 @@ def _sensitivities(report):
 def _switch(report):
     from tripodjax.optimize.sensitivity import SWITCH_REPORTED
 
+    if report.get("sensitivity_notes") is None and report.get("sensitivities") is None:
+        raise NotAvailable("the run did not converge: no switch distances of an unfinished optimum")
     notes = report.get("sensitivity_notes") or {}
+    if notes.get("unavailable"):
+        raise NotAvailable(notes["unavailable"])
     distance = notes.get("switch_distance")
     if distance is None:
         raise NotAvailable(

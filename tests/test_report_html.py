@@ -1201,3 +1201,18 @@ def test_the_validation_sheet_names_its_revision_date_and_spec(run, tmp_path):
     assert sheet.oddHeader.right.text == f"Rev. B && <x>, {body['written']['date']}"
     assert sheet.oddFooter.right.text == "page &P of &N"
     assert read_sheets(tmp_path / "r.xlsx")["validation"]  # the table above, read as before
+
+
+def test_an_unconverged_run_says_so_in_the_switch_notes(run):
+    """For a run that did not converge (no sensitivities, no notes) the near-switch section
+    said the report "has no switch distances", as if an older version had written it; it
+    gives the sensitivities' reason now."""
+    _, body = run
+    unfinished = {k: v for k, v in body.items() if k not in ("sensitivities", "sensitivity_notes")}
+    table = document.tables(unfinished)["switch"]
+    assert table.unavailable == (
+        "the run did not converge: no switch distances of an unfinished optimum"
+    )
+    assert document.tables(unfinished)["sensitivities"].unavailable.startswith(
+        "the run did not converge"
+    )
