@@ -1432,10 +1432,6 @@ def _check(table):
         vehicle, modes, axle = _vehicle(table)
         v.update(vehicle)
     grease = _string(table, "friction", "grease", tuple(GREASE_MU_SLP))
-    accepted = accepted_keys(("friction",))
-    for key in table["friction"]:
-        if key not in accepted:
-            raise SpecError(f"unknown key friction.{key}; allowed here: {', '.join(accepted)}")
     if "mu_slp" in table["friction"]:
         mu_slp = _number(table, "friction", "mu_slp")
     else:
@@ -1460,10 +1456,6 @@ def _check(table):
         for k, (lo, hi) in bounds.items()
     }
     v["bounds"] = {k: np.asarray(pair) for k, pair in v["bounds"].items()}
-    accepted = accepted_keys(("solver",))
-    for key in table["solver"]:
-        if key not in accepted:
-            raise SpecError(f"unknown key solver.{key}; allowed here: {', '.join(accepted)}")
     sizes = {k: _integer(table, k) for k in INTEGER_LIMITS}
     work = math.prod(sizes[k] for k in WORK_KEYS)
     if work > MAX_WORK:

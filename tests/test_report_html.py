@@ -733,12 +733,8 @@ def expected_verdicts(body):
 
 def spec_constraints(body):
     """The spec's own [constraints] in report.json (the verdict table's last rows)."""
-    built_in = ("static_capacity", "life", "outboard_static", "outboard_life")
-    return {
-        name: c
-        for name, c in body["constraints"].items()
-        if name not in built_in and not name.startswith(("shaft_static[", "shaft_fatigue["))
-    }
+    given = body["spec"]["constraints"]
+    return {name: c for name, c in body["constraints"].items() if name in given}
 
 
 def without_halfshaft(body):
@@ -969,6 +965,7 @@ def test_the_validation_verdict_counts_the_spec_constraints_and_the_run():
     report = {
         "converged": False,
         "status": {"feasible": False},
+        "spec": {"constraints": {"max_outer_diameter": 85.0, "min_R_over_d": 0.63}},
         "constraints": {
             "static_capacity": {"value": 9.0, "limit": 1.0, "sense": "≥", "margin": 2.2},
             "shaft_static[C-C]": {"value": 0.9, "limit": 1.0, "sense": "≥", "margin": -0.1},
@@ -1051,17 +1048,29 @@ def test_a_front_of_one_design_keeps_readable_axes_and_its_label_inside():
 def test_shaft_fatigue_at_the_allowed_damage_passes_in_both_documents(run):
     """report.html wrote "≤ 1" (the optimiser's margin ln(allowed/D) ≥ 0, met at 0) and
     validation.html "< 1" with a failing verdict at D = allowed: one rule now, D ≤ allowed, in
-    both documents and the verdict."""
+    report.json's halfshaft section (its flag and words), both documents and the verdict. The
+    allowed damage (one for every section) is set to the largest section damage, so that
+    D = allowed exactly there and the other sections stay below it."""
+    from tripodjax.optimize import structural
+
     _, body = run
-    at = copy.deepcopy(body)
-    section = at["halfshaft"]["sections"][0]
-    allowed = section["allowed_damage"]
-    # as an older report.json's halfshaft section wrote it at D = allowed (its flag: D < allowed)
-    section.update(damage=allowed, fatigue_passed=False, status="successful")
-    name = section["name"]
+    index, worst = max(enumerate(body["halfshaft"]["sections"]), key=lambda p: p[1]["damage"])
+    name, damage = worst["name"], worst["damage"]
+
+    def with_allowed(allowed):
+        spec = optimize.parse_spec(f"[shaft]\nallowed_damage = {allowed!r}\n")
+        report = copy.deepcopy(body)
+        report["halfshaft"] = optimize.halfshaft_report(spec)
+        return report
+
+    at = with_allowed(damage)
+    section = at["halfshaft"]["sections"][index]
+    assert section["damage"] == section["allowed_damage"] == damage
+    assert section["fatigue_passed"] and "damage" in section["result"]
+    assert structural.summary(at["halfshaft"]).startswith("halfshaft: 5 sections")
     sense = body["constraints"][f"shaft_fatigue[{name}]"]["sense"]
-    assert sense == "≤" and math.log(allowed / section["damage"]) >= 0  # the optimiser's margin
-    requirement = f"{sense} {document.fmt(allowed)}"
+    assert sense == "≤" and math.log(damage / section["damage"]) >= 0  # the optimiser's margin
+    requirement = f"{sense} {document.fmt(damage)}"
 
     def fatigue_rows(report):
         validation = document.tables(report, document.VALIDATION_SECTIONS)["validation"]
@@ -1078,13 +1087,10 @@ def test_shaft_fatigue_at_the_allowed_damage_passes_in_both_documents(run):
     assert verdict == "Every check passes."  # the default halfshaft's other checks pass
     assert f"<td>{requirement}</td>" in document.render_validation(at)
     assert f"<td>{requirement}</td>" in document.render_html(at)
-    above = copy.deepcopy(at)
-    above["halfshaft"]["sections"][0]["damage"] = allowed * (1 + 1e-12)
-    failed = copy.deepcopy(at)
-    failed["halfshaft"]["sections"][0]["status"] = "nonfinite"
-    for report_ in (above, failed):
-        validation, halfshaft, verdict = fatigue_rows(report_)
-        assert validation[6] == halfshaft[4] == "fails" and verdict.startswith("Not validated")
+    below = with_allowed(damage * (1 - 1e-12))  # D just above what is allowed: it fails
+    assert not below["halfshaft"]["sections"][index]["fatigue_passed"]
+    validation, halfshaft, verdict = fatigue_rows(below)
+    assert validation[6] == halfshaft[4] == "fails" and verdict.startswith("Not validated")
 
 
 def test_a_reliability_check_no_uncertain_input_affects_says_so():
